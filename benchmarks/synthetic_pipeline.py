@@ -457,7 +457,9 @@ def run(shared: Path = SHARED_DIR, workdir: Path | None = None, workers: int = 0
                                                        not in stored[k].contributing for k in ks),
             "error_m": _stats(err(k) for k in ks),
             "details": [{"system": _short(k), "view": truth.systems[k].corrupted_view, "status": stored[k].status,
-                         "error_m": err(k), "contributing": sorted(stored[k].contributing)} for k in ks],
+                         "error_m": err(k), "contributing": sorted(stored[k].contributing),
+                         "camera_by_players": "player_assisted" in views[(*k, truth.systems[k].corrupted_view)].flags}
+                        for k in ks],
         }
     no_ball = []
     for k, s in stored.items():

@@ -9,7 +9,8 @@ with the bound ``ball_max_sigma_m``), all in process on the same stored calibrat
 Attribution, by ablation on the same views: a right ball lost goes to each class rule whose removal alone gives the
 system a right ball again ("several" when none alone does); a wrong ball avoided goes to each class rule that alone,
 added to the paper's rules, leaves the system without a wrong ball. The rule by evidence is attributed by the reasons
-its pairs were dropped with (``beyond_joint_sigma``, ``sigma_above_bound``, ``outside_play_volume``).
+its pairs were dropped with (``players_disagree``, ``beyond_joint_sigma``, ``sigma_above_bound``,
+``outside_play_volume``), and the views below admission it takes in (``recompute.takes_part``).
 
 Run: ``.venv/bin/python benchmarks/yield_rules.py DB.sqlite3=TRUTH.json ... [--json OUT]`` (databases as imported by
 ``v3d import soccernet-v3``; read only).
@@ -34,16 +35,17 @@ from app.db.session import upgrade_database  # noqa: E402  # after the path is s
 from app.geometry.pitch import within_play_volume  # noqa: E402  # after the path is set
 from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball  # noqa: E402  # after the path is set
 from app.services.derivation.cameras import stored_camera  # noqa: E402  # after the path is set
-from app.services.derivation.doubts import calibration_weights, is_excluded, weighed_views  # noqa: E402  # after the path is set
-from app.services.derivation.recompute import system_ball  # noqa: E402  # after the path is set
+from app.services.derivation.doubts import calibration_weights, weighed_views  # noqa: E402  # after the path is set
+from app.services.derivation.recompute import system_ball, takes_part  # noqa: E402  # after the path is set
 from app.services.evaluation.ball_yield import RIGHT_M, WRONG_M, _systems, paper_ball, truth_balls  # noqa: E402  # after the path is set
 
 CLASS_RULES = ("parallax", "play_volume", "weights")
 
 
-def _observations(system: Any) -> tuple[list[BallObservation], dict[int, Any]]:
-    """The observations v3d's recomputation triangulates (admitted as stored, labelled, not suggested, not excluded)
-    and the cameras of the calibrated frames."""
+def _observations(system: Any, by_evidence: bool = False) -> tuple[list[BallObservation], dict[int, Any]]:
+    """The observations v3d's recomputation triangulates (the views that take part, ``recompute.takes_part``, under
+    the rule by class or, ``by_evidence``, by evidence; labelled, not suggested) and the cameras of the calibrated
+    frames."""
     cameras, obs = {}, []
     for f in system.frames:
         cal = f.calibration
@@ -51,8 +53,7 @@ def _observations(system: Any) -> tuple[list[BallObservation], dict[int, Any]]:
             cameras[f.id] = stored_camera(cal.camera)
         label = f.ball_label
         centre = None if label is None else label.centre
-        if (cal is not None and cal.admitted and centre is not None and not is_excluded(f)
-                and not label.suggested and f.id in cameras):
+        if centre is not None and not label.suggested and takes_part(f, by_evidence):
             obs.append(BallObservation(f.id, cameras[f.id], np.asarray(centre, float), float(f.width)))
     return obs, cameras
 
@@ -101,14 +102,15 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
             memo = PairGeometryMemo()
             e = {"paper": _err(paper_ball(system, settings), t),
                  "v3d_class": _err(_class_ball(obs, weights, settings, memo, set(CLASS_RULES)), t)}
-            judged, _ = system_ball(system, obs, by_evidence, weighed, memo, weighs_calibrations=True)
+            judged, _ = system_ball(system, _observations(system, True)[0], by_evidence, weighed, memo,
+                                    weighs_calibrations=True)
             e["v3d_evidence"] = _err(judged.point, t)
             for k, v in e.items():
                 counts[k]["with_ball"] += v is not None
                 counts[k]["right"] += _right(v)
                 counts[k]["wrong"] += _wrong(v)
             reasons = {p.reason for p in judged.pairs if not p.kept} & {
-                "beyond_joint_sigma", "sigma_above_bound", "outside_play_volume"}
+                "players_disagree", "beyond_joint_sigma", "sigma_above_bound", "outside_play_volume"}
             for k in ("v3d_class", "v3d_evidence"):
                 worse = not _right(e[k]) and (e[k] is None or e[k] > (e["paper"] or 0.0))
                 if _right(e["paper"]) and worse:

@@ -8,6 +8,11 @@ neither makes nor moves a ball alone). Under ``ball_rule`` "evidence" the pairs 
 uncertainty instead (Hartley and Zisserman, *Multiple View
 Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation of anipose and Pose2Sim):
 
+0. a kept pair whose two cameras put the players both views see in places that disagree (``players_disagree``,
+   :func:`app.geometry.calibration.players.pair_players_disagreement`) is left out (reason ``players_disagree``): with
+   two views an error of one camera along the epipolar line (a mirrored or misplaced camera) leaves the ball's rays no
+   residual, and the players are a second, independent look at the same two cameras (in a desynchronised replay
+   they have moved too);
 1. each view has a pixel sigma (px at 1920 width: its label's and its calibration's, in quadrature); each kept pair's
    point ``p_k`` has the information matrix ``I_k = sum_v J_v^T J_v / sigma_v^2`` of its two views
    (:func:`app.geometry.spread.projection_jacobian` at ``p_k``). A low-parallax pair's information is nearly
@@ -59,8 +64,9 @@ class EvidenceBall:
     """What :func:`judge_by_evidence` gives.
 
     Attributes:
-        result: the triangulation with the pairs judged (reasons ``beyond_joint_sigma``, ``sigma_above_bound`` and
-            ``outside_play_volume`` added where they apply) and the fused ball, or status ``no_pair_kept``.
+        result: the triangulation with the pairs judged (reasons ``players_disagree``, ``beyond_joint_sigma``,
+            ``sigma_above_bound`` and ``outside_play_volume`` added where they apply) and the fused ball, or status
+            ``no_pair_kept``.
         sigma_m: the ball's sigma (metres, one standard deviation along its least certain direction) of the pairs
             left, also when the bound refused the ball (what refused it); None without pairs left or when their
             views fix no point.
@@ -114,7 +120,8 @@ def _fixes_point(info: np.ndarray) -> bool:
 
 def judge_by_evidence(observations: Sequence[BallObservation], triangulated: TriangulationResult,
                       sigma_px_1920: Mapping[Any, float], *, max_sigma_m: float,
-                      distance_to_volume_m: Callable[[np.ndarray], float] | None = None) -> EvidenceBall:
+                      distance_to_volume_m: Callable[[np.ndarray], float] | None = None,
+                      players_disagree: Callable[[Any, Any], bool] | None = None) -> EvidenceBall:
     """Judge the pairs the paper's rules kept (``triangulated``: :func:`app.geometry.triangulation.triangulate_ball`
     without weights, play volume or parallax filter) by their uncertainty, and fuse the ball (module docstring).
 
@@ -126,6 +133,8 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
         max_sigma_m: the largest sigma (metres) of a ball that stands; positive.
         distance_to_volume_m: world point (3,) -> its distance (metres) to the play volume, 0 inside
             (``app.geometry.pitch.distance_to_play_volume``); None: no play volume.
+        players_disagree: view ids ``(a, b)`` of a kept pair -> whether their cameras disagree on the players both
+            views see (asked once per kept pair, before anything else); None: no such evidence.
 
     Returns:
         An :class:`EvidenceBall`; ``triangulated`` unchanged (and sigma None) when it has no ball.
@@ -143,6 +152,9 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
     infos: dict[int, np.ndarray] = {}
     for k, p in enumerate(pairs):
         if not p.kept or p.point is None:
+            continue
+        if players_disagree is not None and players_disagree(p.view_a, p.view_b):
+            pairs[k] = dataclasses.replace(p, kept=False, reason="players_disagree")
             continue
         info = _information((by_id[p.view_a], by_id[p.view_b]), p.point, sigma_px_1920)
         if info is None:  # the pair's point behind a camera: the paper's rules dropped it already

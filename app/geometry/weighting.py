@@ -134,6 +134,20 @@ def pixel_sigma(view: WeighedView, point: np.ndarray, s: Weighing) -> float:
     return float(math.sqrt(sum(t * t for t in terms))) * rule_scale(view, s)
 
 
+#: Least share of its own field lines (JaC@0.5 %) a camera below admission must fit for its uncertainty to speak for
+#: it: below, its fit failed whatever sigma it states (a camera that fits none, JaC 0, is no camera of the view).
+MIN_OWN_LINES_JAC = 0.5
+
+
+def fits_own_lines(jac: float | None) -> bool:
+    """Whether a camera below admission (JaC@0.5 % ``jac``, a fraction, at most ``admit_jac_min``; None without one)
+    still fits most of its own field lines (:data:`MIN_OWN_LINES_JAC`): its stated uncertainty then speaks for it, in
+    the doubts' votes (:func:`calibration_weight`) and in the ball judged by evidence
+    (``app.services.derivation.recompute.takes_part``). SoccerNet's JaC: the share of the annotated line points
+    within gamma of the camera's projected lines (``app.geometry.jac``)."""
+    return (jac or 0.0) >= MIN_OWN_LINES_JAC
+
+
 def calibration_weight(view: WeighedView, s: Weighing) -> tuple[float, float]:
     """What the view's calibration is worth as evidence of a ball, and its pixel sigma: ``(weight, sigma)``.
 
@@ -159,7 +173,7 @@ def calibration_weight(view: WeighedView, s: Weighing) -> tuple[float, float]:
     sigma = pixel_sigma(view, ref, s)
     if view.line_classes >= s.min_line_classes:
         return _vote_weight(view, sigma, s), sigma
-    sure = bool(view.uncertainty) and sigma <= s.consensus_tau_px and (view.jac or 0.0) >= 0.5
+    sure = bool(view.uncertainty) and sigma <= s.consensus_tau_px and fits_own_lines(view.jac)
     return (0.5 if sure else 0.0), sigma
 
 
@@ -174,4 +188,4 @@ def _vote_weight(view: WeighedView, sigma_1920: float, s: Weighing) -> float:
         return 1.0 if sure else 0.5
     # below admission: its uncertainty speaks for it only if the camera fits most of its own lines
     # (JaC@0.5 % of at least a half; a camera that fits none, JaC 0, is a failed fit whatever its sigma)
-    return 0.5 if sure and (view.jac or 0.0) >= 0.5 else 0.0
+    return 0.5 if sure and fits_own_lines(view.jac) else 0.0

@@ -217,7 +217,7 @@ export const WORDS = /*WORDS*/{
   },
   "insufficient_views": {
    "chip": "too few views",
-   "means": "fewer than two admitted views with a ball label"
+   "means": "fewer than two views with a ball label whose cameras may make a ball (admitted, or fitting most of their own lines)"
   },
   "no_pair_kept": {
    "chip": "no pair kept",
@@ -260,6 +260,10 @@ export const WORDS = /*WORDS*/{
   "outweighed": {
    "chip": "outweighed",
    "means": "pairs of surer cameras agree on another ball"
+  },
+  "players_disagree": {
+   "chip": "players disagree",
+   "means": "the two cameras put the players both views see in different places: one camera is wrong (mirrored, misplaced) or the views are not of one instant"
   },
   "beyond_joint_sigma": {
    "chip": "disagrees",

@@ -23,11 +23,13 @@ from app.geometry.calibration.players import (
     PlayerFitSettings,
     PlayerRefusal,
     fit_camera_to_players,
+    pair_players_disagreement,
     players_disagreement,
     row_medians,
 )
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.camera import Camera, look_at_rotation
+from app.geometry.mirror import mirror_camera
 from tests.geometry.synthetic import visible_model_points
 
 W, H = 1920, 1080
@@ -496,3 +498,28 @@ def test_players_in_a_row_are_placed_by_their_heads_not_refused_as_collinear() -
     fit = fit_camera_to_players(feet, grass, {}, W, H, RIG, heads=heads)
     assert isinstance(fit, PlayerFit), fit
     assert fit.rig_index == 1 and ball_error(fit, truth) < 3.0
+
+
+def test_two_right_cameras_of_one_instant_agree_on_their_players_a_mirrored_one_does_not() -> None:
+    """``pair_players_disagreement``: the main camera and a replay both right, their players' foot points a pixel
+    noisy: a median within a few standard deviations; the replay's camera mirrored (what its mirrored lines calibrate
+    to, ``mirror_camera``: it projects the mirrored world to the same pixels, so its ball ray is wrong while no
+    residual of the ball's two rays shows it): far beyond :data:`LINES_CONTRADICTED_SIGMA`; a replay of another
+    instant (every player 3 m on) too; with two shared players, no figure."""
+    rng = np.random.default_rng(43)
+    main = camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1800.0)
+    replay = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(8, rng)
+    feet_main, feet_replay = feet_in(main, pts, 1.0, rng), feet_in(replay, pts, 1.0, rng)
+    size = (W, H)
+    agree = pair_players_disagreement(main, feet_main, size, replay, feet_replay, size)
+    assert agree is not None and agree < 3.0
+    mirrored = mirror_camera(replay)
+    # the same image and boxes: only the lines were labelled left for right
+    got = pair_players_disagreement(main, feet_main, size, mirrored, feet_replay, size)
+    assert got is not None and got > LINES_CONTRADICTED_SIGMA
+    later = {k: p + np.array([3.0, 0.0]) for k, p in pts.items()}
+    desync = pair_players_disagreement(main, feet_main, size, replay, feet_in(replay, later, 1.0, rng), size)
+    assert desync is not None and desync > LINES_CONTRADICTED_SIGMA
+    two = dict(list(feet_replay.items())[:2])
+    assert pair_players_disagreement(main, feet_main, size, replay, two, size) is None

@@ -86,3 +86,28 @@ def test_bad_bound_is_refused():
     obs = observe([look_at([0.0, 75.0, -22.0], BALL), look_at([70.0, 4.0, -15.0], BALL)])
     with pytest.raises(ValueError, match="max_sigma_m"):
         judge_by_evidence(obs, _paper(obs), {"v0": 1.0, "v1": 1.0}, max_sigma_m=0.0)
+
+
+def test_a_pair_whose_cameras_disagree_on_their_players_makes_no_ball():
+    """Two views whose rays meet (no residual: the ball's pair alone cannot tell a camera wrong along the epipolar
+    line) make a ball with a small sigma; told that the two cameras disagree on their players, the pair is left out
+    (``players_disagree``) and no ball stands. In a three-view system the other pairs still make it."""
+    cams = [look_at([0.0, 75.0, -22.0], BALL, focal=3000.0), look_at([70.0, 4.0, -15.0], BALL, focal=2500.0),
+            look_at([10.0, -55.0, -12.0], BALL, focal=4000.0)]
+    two = observe(cams[:2])
+    sig = {"v0": 2.0, "v1": 2.0, "v2": 2.0}
+    assert judge_by_evidence(two, _paper(two), sig, max_sigma_m=10.0).result.point is not None
+    asked = []
+
+    def disagree(a, b):
+        asked.append((a, b))
+        return {a, b} == {"v0", "v1"}
+
+    judged = judge_by_evidence(two, _paper(two), sig, max_sigma_m=10.0, players_disagree=disagree)
+    assert judged.result.point is None and judged.result.status == "no_pair_kept"
+    assert [p.reason for p in judged.result.pairs] == ["players_disagree"] and asked == [("v0", "v1")]
+    three = observe(cams)
+    judged = judge_by_evidence(three, _paper(three), sig, max_sigma_m=10.0, players_disagree=disagree)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.05
+    assert {(p.view_a, p.view_b): p.reason for p in judged.result.pairs} == {
+        ("v0", "v1"): "players_disagree", ("v0", "v2"): None, ("v1", "v2"): None}

@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
-from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world
+from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world, players_on_grass
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotations
 from app.geometry.calibration.player_problem import PlayerProblem, projection_sigma_px
 from app.geometry.calibration.residuals import CameraParametrisation
@@ -393,6 +393,40 @@ def players_disagreement(camera: Camera, feet: Mapping[PlayerKey, np.ndarray], g
     x = param.vector(float(camera.K[0, 0]), np.asarray(camera.C, float))
     problem.rewhiten(x, param)
     return float(np.median(problem.pixel_errors(x, param)[1]))
+
+
+def pair_players_disagreement(camera_a: Camera, feet_a: Mapping[PlayerKey, np.ndarray], size_a: tuple[int, int],
+                              camera_b: Camera, feet_b: Mapping[PlayerKey, np.ndarray], size_b: tuple[int, int],
+                              min_players: int = 3) -> float | None:
+    """How far two views' cameras disagree on the players both see: each view's :func:`players_disagreement` (the
+    median foot-point distance, in standard deviations) against where the other view alone puts those players
+    (:func:`~.grass.players_on_grass`), the larger of the two. Two right cameras of one instant agree within their
+    foot points' noise; a mirrored or misplaced camera, or a replay of another instant, puts the shared players metres
+    off (compare with :data:`LINES_CONTRADICTED_SIGMA`).
+
+    Args:
+        camera_a, camera_b: the two views' cameras (SoccerNet world, metres, z down).
+        feet_a, feet_b: foot pixels (2,) by player (class, ID) of each view (px of its image,
+            ``app.services.calibration.players.feet_of``).
+        size_a, size_b: each view's image ``(width, height)``, px.
+        min_players: players both views must share (with foot points) for a figure.
+
+    Returns:
+        The larger median disagreement of the two directions (standard deviations), or None when neither has
+        ``min_players`` players to compare (too few to tell a camera wrong; a player the other camera puts off the
+        pitch is not compared).
+    """
+    shared = [k for k in feet_a if k in feet_b]
+    if len(shared) < min_players:
+        return None
+    worst = None
+    for cam_x, feet_x, size_x, cam_y, feet_y in ((camera_a, feet_a, size_a, camera_b, feet_b),
+                                                 (camera_b, feet_b, size_b, camera_a, feet_a)):
+        grass = players_on_grass([(cam_y, {k: feet_y[k] for k in shared})])
+        got = players_disagreement(cam_x, {k: feet_x[k] for k in shared}, grass, size_x[0], size_x[1], min_players)
+        if got is not None:
+            worst = got if worst is None else max(worst, got)
+    return worst
 
 
 def _rig_fits(problem: PlayerProblem, rig_centres: Sequence[Sequence[float]], s: PlayerFitSettings) -> list[_Candidate]:

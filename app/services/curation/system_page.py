@@ -132,8 +132,8 @@ def load_system(session: Session, system_id: int) -> System:
     loaded = _loaded_system(session, system_id)
     if loaded is not None:
         return loaded
-    return found(load_systems(session, [system_id], _PAGE_SYSTEM_ROWS, predictions=None).get(system_id), "system",
-                 system_id)
+    loaded_now = load_systems(session, [system_id], _PAGE_SYSTEM_ROWS, predictions=None, players=False)
+    return found(loaded_now.get(system_id), "system", system_id)
 
 
 #: The system's one-to-one rows its page draws besides its triangulation (``loading.load_systems``).

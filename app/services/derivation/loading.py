@@ -1,9 +1,10 @@
-"""Systems loaded with their views and derived rows in five queries, whatever the number of systems and views.
+"""Systems loaded with their views and derived rows in six queries, whatever the number of systems and views.
 
 What a recomputation (``recompute.load_for_recompute``) and the system page (``app.services.curation.system_page``)
 read of a system, as ``app.db.scope`` declares it: the system with its one-to-one rows joined to it,
 its views (``System.frames``, in their order) with each view's one-to-one rows joined to it, its pairs
-(``Triangulation.pairs``), doubts (``System.doubts``) and its views' detector predictions (``Frame.predictions``, at
+(``Triangulation.pairs``), doubts (``System.doubts``), its views' person boxes (``Frame.players``, for a recomputation)
+and detector predictions (``Frame.predictions``, at
 most ``V3D_MAX_PREDICTIONS_PER_FRAME`` a view, the best by score: ``app.db.models.predictions.ranked_predictions``,
 so that a view flooded before the import's cap never reaches memory whole; none for the page, which draws none), in
 id order. Each list is one query for all the systems asked;
@@ -27,7 +28,7 @@ from app.db.models import Doubt, Frame, PlayerBox, Prediction, System, Triangula
 from app.db.models.predictions import ranked_predictions
 from app.db.scope import FRAME_ROWS
 
-#: Systems loaded per round of five queries (bounded IN lists and memory).
+#: Systems loaded per round of queries (bounded IN lists and memory).
 CHUNK = 500
 
 
@@ -52,12 +53,13 @@ def _statements(system_rows: tuple[str, ...]) -> tuple[sa.Select, sa.Select, sa.
 
 
 def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, ...] = (), *,
-                 predictions: int | None) -> dict[int, System]:
+                 predictions: int | None, players: bool = True) -> dict[int, System]:
     """The systems ``ids`` that exist, by id, each with its views (and their one-to-one rows), triangulation and
     pairs, doubts, at most ``predictions`` predictions a view (the best by score; None: none loaded, the relationship
     left unloaded) and the one-to-one relationships ``system_rows`` (e.g. ``(System.review, System.game)``)
-    loaded: five queries per :data:`CHUNK` systems (four without predictions; module docstring), and a sixth for the
-    person boxes of the views with predictions (:func:`load_view_players`)."""
+    loaded: six queries per :data:`CHUNK` systems (five without predictions, one fewer without ``players``; module
+    docstring), the last for the views' person boxes (:func:`load_view_players`), which a recomputation reads (the
+    page draws none)."""
     out: dict[int, System] = {}
     ids = list(dict.fromkeys(ids))
     systems_q, frames_q, pairs_q, doubts_q, predictions_q = _statements(tuple(r.key for r in system_rows))
@@ -80,7 +82,9 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
             for fs in frames.values():
                 for f in fs:
                     _hand_over(f, "predictions", best[f.id])
-            # the detector's check reads the person boxes of the views with predictions (none at an import)
+        if players:  # the ball judged by evidence compares the players its views' cameras place, and the detector's
+            load_view_players(session, [f for fs in frames.values() for f in fs])  # check reads the person boxes
+        elif predictions is not None:
             load_view_players(session, [f for fs in frames.values() for f in fs if best[f.id]])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
@@ -111,8 +115,7 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
 
 def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
     """Hand each of ``frames`` whose person boxes (``Frame.players``) the session has not loaded its boxes, in one
-    query (the detector's check reads them only on views with predictions: a recomputation without predictions
-    loads none); frames with theirs loaded are left as they are."""
+    query; frames with theirs loaded are left as they are."""
     wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
     if not wanted:
         return

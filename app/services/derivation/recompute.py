@@ -10,8 +10,8 @@ Admission and calibration: ``app.services.calibration.calibrating`` (the frame's
 
 Derived rows:
 
-* ``Triangulation`` (+ ``TriangulationPair`` per pair of admitted labelled views), always present
-  after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
+* ``Triangulation`` (+ ``TriangulationPair`` per pair of labelled views that take part, :func:`takes_part`), always
+  present after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
 * ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
   against the frame's label, None without one);
 * ``OptimisedBox`` (paper Eq. min_diametre; drawn by ``settings.optimised_box_method``) for every admitted frame with a
@@ -29,6 +29,7 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import partial
 from typing import Any, Callable, Iterable, Sequence, cast
@@ -56,6 +57,7 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
+from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA, pair_players_disagreement
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
@@ -71,10 +73,11 @@ from app.geometry.triangulation import (
     TriangulationResult,
     triangulate_ball,
 )
+from app.geometry.weighting import fits_own_lines
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
-from app.services.calibration.players import place_frame_by_players, players_mirror_evidence
+from app.services.calibration.players import feet_of, frame_players, place_frame_by_players, players_mirror_evidence
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.derivation import cameras as shared
@@ -96,11 +99,13 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 6  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 7  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
 # evidence, settings.ball_rule), a placement's doubts say its error once confirmed, as the view will show it, and a
-# players-placed view's label far off the agreed ball is accused; 6: the rule by evidence is the default
+# players-placed view's label far off the agreed ball is accused; 6: the rule by evidence is the default; 7: under it
+# a view below admission that fits most of its own lines takes part, an undetermined camera makes no pair, and a pair
+# whose cameras disagree on their players is left out
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -201,6 +206,8 @@ def recompute_system(session: Session, system: System, settings: Settings,
     """
     count_recomputation()
     frames = list(system.frames)
+    kind = kind_of(system)
+    by_evidence = judged_by_evidence(settings, kind.weighs_calibrations)
     cameras: dict[int, Camera] = {}
     observations: list[BallObservation] = []
     for f in frames:
@@ -211,10 +218,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
                 cameras[f.id] = stored_camera(cal.camera)
         centre = _label_centre(f)
         suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
-        if cal is not None and cal.admitted and centre is not None and not is_excluded(f) and not suggested:
+        if centre is not None and not suggested and takes_part(f, by_evidence):
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
-    kind = kind_of(system)
     if geometry is None:  # each pair's rays once, for the mirror evidence, the triangulation and the doubts, and the
         geometry = shared.PAIR_GEOMETRY  # pairs of views an edit left as they were (``cameras`` module docstring)
     if kind.broadcast_priors:
@@ -228,7 +234,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
 
     result, sigma_m = ball_of(observations)
     after_confirming = partial(_error_once_confirmed, cameras, observations, result,
-                               lambda o, boxes: ball_of(o, boxes)[0])
+                               lambda o, boxes: ball_of(o, boxes)[0], by_evidence)
 
     tri = system.triangulation
     if tri is None:
@@ -258,6 +264,53 @@ def recompute_system(session: Session, system: System, settings: Settings,
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
+
+
+def judged_by_evidence(settings: Settings, weighs_calibrations: bool) -> bool:
+    """Whether a system's 3D ball is judged by evidence (``settings.ball_rule`` "evidence", for a kind that weighs its
+    calibrations: :func:`system_ball`), else by class."""
+    return settings.ball_rule == "evidence" and weighs_calibrations
+
+
+def takes_part(frame: Frame, by_evidence: bool) -> bool:
+    """Whether ``frame``'s view may join its system's 3D ball, its label aside: calibrated, not excluded by a person
+    (``is_excluded``), and admitted (``Calibration.admitted``: JaC@gamma above ``admit_jac_min``, the paper's rule); or,
+    when the ball is judged by evidence (``by_evidence``, :func:`judged_by_evidence`), below admission while its
+    camera still fits most of its own lines (``app.geometry.weighting.fits_own_lines``, JaC@0.5 %, as for the doubts'
+    votes). Such a view's ray is then weighed by its uncertainty like any other's: a JaC threshold is a rule by class,
+    and a camera fitted to two or three line classes fits them exactly yet scores a coarse JaC (2 of 3 lines, 0.67)
+    whatever its pose."""
+    cal = frame.calibration
+    if cal is None or cal.status is not CalibrationStatus.CALIBRATED or cal.camera is None or is_excluded(frame):
+        return False
+    return bool(cal.admitted) or (by_evidence and fits_own_lines(cal.jac_0005))
+
+
+def players_disagree(system: System, observations: Sequence[BallObservation]) -> Callable[[Any, Any], bool]:
+    """View ids ``(a, b)`` of ``system``'s ``observations`` -> whether their cameras put the players both views see
+    (class and ID, ``Frame.players``) farther apart than ``LINES_CONTRADICTED_SIGMA`` standard deviations
+    (``app.geometry.calibration.players.pair_players_disagreement``; at least three shared players), what
+    :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for. Each view's foot points are read once, on
+    the first pair that asks."""
+    frames = {f.id: f for f in system.frames}
+    cameras = {o.view_id: o.camera for o in observations}
+    feet: dict[Any, dict] = {}
+
+    def feet_of_view(view_id: Any) -> dict:
+        if view_id not in feet:
+            f = frames[view_id]
+            feet[view_id] = feet_of(frame_players(f), f.width, f.height)
+        return feet[view_id]
+
+    def disagree(a: Any, b: Any) -> bool:
+        fa, fb = feet_of_view(a), feet_of_view(b)
+        if len(fa) < 3 or len(fb) < 3:  # too few players to tell a camera wrong: spare the comparison
+            return False
+        got = pair_players_disagreement(cameras[a], fa, (frames[a].width, frames[a].height),
+                                        cameras[b], fb, (frames[b].width, frames[b].height))
+        return got is not None and got > LINES_CONTRADICTED_SIGMA
+
+    return disagree
 
 
 def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
@@ -290,21 +343,22 @@ def view_sigmas_px(system: System, observations: Sequence[BallObservation], sett
 def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObservation],
                           result: TriangulationResult,
                           triangulated: Callable[[list[BallObservation], dict[int, Sequence[float]] | None],
-                                                 TriangulationResult],
+                                                 TriangulationResult], by_evidence: bool,
                           frame: Frame, centre: np.ndarray, box: Sequence[float] | None) -> float | None:
     """How far (px of ``frame``'s image) a label centred at ``centre`` (its box ``box``, px, or None) would lie from
     the 3D ball once a person confirmed it there: the ball ``triangulated`` with it, its box standing for the view's
     label (a label's size is its pixel noise under the rule by evidence), as the recomputation that gave ``result``
-    from ``observations`` triangulates (when the view takes part: admitted, not excluded), else ``result``'s ball;
+    from ``observations`` triangulates (when the view takes part: :func:`takes_part`), else ``result``'s ball;
     None where there would be none, or no camera."""
     camera = cameras.get(frame.id)
     if camera is None:
         return None
-    cal = frame.calibration
-    takes_part = cal is not None and bool(cal.admitted) and not is_excluded(frame)
-    ball = triangulated([*(o for o in observations if o.view_id != frame.id),
-                         BallObservation(view_id=frame.id, camera=camera, point_px=centre, image_width=frame.width)],
-                        None if box is None else {frame.id: box}).point if takes_part else result.point
+    if not takes_part(frame, by_evidence):
+        ball = result.point
+    else:
+        confirmed = BallObservation(view_id=frame.id, camera=camera, point_px=centre, image_width=frame.width)
+        ball = triangulated([*(o for o in observations if o.view_id != frame.id), confirmed],
+                            None if box is None else {frame.id: box}).point
     return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
 
 
@@ -324,11 +378,14 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty).
     ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed)."""
     sigmas = view_sigmas_px(system, observations, settings, weighed, boxes)
-    if settings.ball_rule == "evidence" and weighs_calibrations:
+    if judged_by_evidence(settings, weighs_calibrations):
+        # a camera the fit leaves undetermined (an infinite sigma) tells nothing of where its ray runs: it makes no pair
+        observations = [o for o in observations if math.isfinite(sigmas[cast(int, o.view_id)])]
         paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                                  min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
         judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
-                                   distance_to_volume_m=distance_to_play_volume)
+                                   distance_to_volume_m=distance_to_play_volume,
+                                   players_disagree=players_disagree(system, observations))
         return judged.result, judged.sigma_m
     weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,

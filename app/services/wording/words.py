@@ -154,7 +154,8 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
     "triangulation": {
         "triangulated": {"chip": "triangulated", "means": "at least one pair of views agrees on the ball"},
         "insufficient_views": {"chip": "too few views",
-                               "means": "fewer than two admitted views with a ball label"},
+                               "means": "fewer than two views with a ball label whose cameras may make a ball "
+                                        "(admitted, or fitting most of their own lines)"},
         "no_pair_kept": {"chip": "no pair kept", "means": "every pair of views was dropped"},
     },
     "pair_reason": {
@@ -169,6 +170,9 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
         "outside_play_volume": {"chip": "outside the pitch", "means": "the rays meet where no ball can be"},
         "weak_calibrations": {"chip": "weak cameras", "means": "neither camera is sure enough to make a ball"},
         "outweighed": {"chip": "outweighed", "means": "pairs of surer cameras agree on another ball"},
+        "players_disagree": {"chip": "players disagree",
+                             "means": "the two cameras put the players both views see in different places: one "
+                                      "camera is wrong (mirrored, misplaced) or the views are not of one instant"},
         "beyond_joint_sigma": {"chip": "disagrees", "means": "the pair's point lies off the ball the other pairs agree "
                                                          "on, beyond their joint uncertainty"},
         "sigma_above_bound": {"chip": "too uncertain",

@@ -49,7 +49,7 @@ def _statements(session: Session) -> Iterator[list[str]]:
         sa.event.remove(engine, "before_cursor_execute", count)
 
 
-def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir: Path, fresh_session_factory) -> None:
+def test_load_systems_reads_what_the_lazy_loads_read_in_six_queries(shared_dir: Path, fresh_session_factory) -> None:
     session = _dev_set(shared_dir, fresh_session_factory)
     ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
     assert len(ids) == 40
@@ -60,10 +60,17 @@ def test_load_systems_reads_what_the_lazy_loads_read_in_five_queries(shared_dir:
 
     with _statements(session) as statements:
         loaded = load_systems(session, [*reversed(ids), 999_999], (System.review, System.game), predictions=16)
-        assert [s.split()[0] for s in statements] == ["SELECT"] * 5  # one per list (predictions too), any count
+        # one per list (predictions and person boxes too), any count
+        assert [s.split()[0] for s in statements] == ["SELECT"] * 6
         statements.clear()
         assert {sid: _shape(s) for sid, s in loaded.items()} == lazy
+        assert all(len(f.players) >= 0 for s in loaded.values() for f in s.frames)  # the person boxes, every view's
         assert statements == []  # everything read above was loaded
+        # the system page reads no person boxes: one query fewer
+        session.expunge_all()
+        statements.clear()
+        load_systems(session, ids, (System.review, System.game), predictions=None, players=False)
+        assert [s.split()[0] for s in statements if s != "BEGIN"] == ["SELECT"] * 4
     assert set(loaded) == set(ids)  # an id that names no system is left out
 
     # a list the session holds loaded is left as it is (a pending doubt stays in it)
@@ -90,8 +97,8 @@ def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_
     session.expunge_all()
 
     with _statements(session) as statements:
-        system = load_systems(session, [sid], predictions=16)[sid]
-        # the five lists, and the person boxes of the one view with predictions
+        system = load_systems(session, [sid], predictions=16, players=False)[sid]
+        # the five lists, and the person boxes of the one view with predictions (a load without every view's)
         assert [s.split()[0] for s in statements if s != "BEGIN"] == ["SELECT"] * 6
         statements.clear()
         (with_predictions,) = [f for f in system.frames if f.predictions]

@@ -19,11 +19,22 @@ def test_admission_follows_the_jac_threshold(db_session, settings, imported):
     jacs = {f.name: f.calibration.jac_0005 for f in system.frames}
     assert jacs == {"2.png": 1.0, "2_1.png": 1.0, "2_2.png": 1.0, "2_3.png": pytest.approx(13 / 15)}
 
-    strict = settings.model_copy(update={"admit_jac_min": jacs["2_3.png"]})  # strictly above is required
+    strict = settings.model_copy(update={"admit_jac_min": jacs["2_3.png"], "ball_rule": "weights"})  # strictly above
     tri = recompute_system(db_session, system, strict)
     assert {f.name for f in system.frames if f.calibration.admitted} == {"2.png", "2_1.png", "2_2.png"}
     assert len(tri.pairs) == 3 and _frame(system, "2_3.png").optimised_box is None
     assert _frame(system, "2_3.png").reprojection is not None  # calibrated: the ball is still drawn there
+
+    # Judged by evidence, a view below admission whose camera still fits most of its own lines (13 of 15 points)
+    # takes part, weighed by its uncertainty; one that fits under half of them does not.
+    tri = recompute_system(db_session, system, strict.model_copy(update={"ball_rule": "evidence"}))
+    assert not _frame(system, "2_3.png").calibration.admitted and len(tri.pairs) == 6
+    assert tri.status is TriangulationStatus.TRIANGULATED
+    assert _frame(system, "2_3.png").optimised_box is None  # drawn for admitted views only, as before
+    _frame(system, "2_3.png").calibration.jac_0005 = 0.4
+    tri = recompute_system(db_session, system, strict.model_copy(update={"ball_rule": "evidence"}))
+    assert len(tri.pairs) == 3
+    _frame(system, "2_3.png").calibration.jac_0005 = jacs["2_3.png"]
 
     tri = recompute_system(db_session, system, settings)
     assert all(f.calibration.admitted for f in system.frames)
@@ -92,3 +103,23 @@ def test_a_changed_profile_marks_the_stored_results_stale_until_recompute(db_ses
     assert recompute_all_systems(db_session, paper)[0] == n
     assert systems_computed_otherwise(db_session, paper) == 0
     assert systems_computed_otherwise(db_session, settings) == n
+
+
+def test_a_pair_whose_views_disagree_on_their_players_makes_no_ball_by_evidence(db_session, settings, imported):
+    """0.png's two views (true cameras) make one kept pair and a ball. The players' boxes moved 120 px (of 960) in the
+    replay, as a replay of another instant shows them (27 standard deviations against the main view's players; 40 px
+    gives 8.6, within ``LINES_CONTRADICTED_SIGMA``), the ball's label left as it is, so its rays still meet: judged by
+    evidence the pair is left out (``players_disagree``) and no ball stands; the rule by class, which reads no
+    players, keeps it."""
+    system = imported["0.png"]
+    by_evidence = settings.model_copy(update={"ball_rule": "evidence"})
+    tri = recompute_system(db_session, system, by_evidence)
+    assert tri.status is TriangulationStatus.TRIANGULATED and [p.kept for p in tri.pairs] == [True]
+    replay = _frame(system, "0_1.png")
+    assert sum(p.ident is not None for p in replay.players) >= 3
+    for p in replay.players:
+        p.x1, p.x2 = p.x1 + 120.0, p.x2 + 120.0
+    tri = recompute_system(db_session, system, by_evidence)
+    assert tri.ball3d is None and [p.reason for p in tri.pairs] == ["players_disagree"]
+    tri = recompute_system(db_session, system, by_evidence.model_copy(update={"ball_rule": "weights"}))
+    assert tri.ball3d is not None
