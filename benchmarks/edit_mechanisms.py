@@ -8,6 +8,8 @@ that difference is at least a tenth of a served ball edit's server CPU (``benchm
 
 * ``cameras``: the process's camera objects and pair memo (``app.services.derivation.cameras``); off: every edit
   builds its cameras and pairs anew.
+* ``players``: the process's memo of how far each pair's cameras disagree on their players (``cameras.PAIR_PLAYERS``,
+  asked by the ball judged by evidence); off: every edit compares its pairs anew.
 * ``only-changed``: ``rows.put_values`` leaves a value equal to the stored one unset, so the flush writes only what
   changed; off: every derived value is set, every derived row written.
 * ``answer-from-edit``: the page an edit answers is drawn from the objects it committed
@@ -58,6 +60,20 @@ def _fresh_memo() -> None:
 
 
 @contextlib.contextmanager
+def players_off() -> Iterator[None]:
+    """Every pair's players compared anew (a new memo per edit)."""
+    real = cameras.PAIR_PLAYERS
+    try:
+        yield
+    finally:
+        cameras.PAIR_PLAYERS = real
+
+
+def _fresh_players() -> None:
+    cameras.PAIR_PLAYERS = cameras.PairPlayersMemo(max_entries=cameras.PAIRS)
+
+
+@contextlib.contextmanager
 def only_changed_off() -> Iterator[None]:
     """Every derived value set, equal or not."""
     def put_all(row: Any, values: dict[str, Any]) -> Any:
@@ -86,7 +102,8 @@ def answer_from_edit_off() -> Iterator[None]:
 
 
 MECHANISMS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
-    "cameras": cameras_off, "only-changed": only_changed_off, "answer-from-edit": answer_from_edit_off}
+    "cameras": cameras_off, "players": players_off, "only-changed": only_changed_off,
+    "answer-from-edit": answer_from_edit_off}
 
 
 def main() -> None:
@@ -107,8 +124,10 @@ def main() -> None:
         def edit(off: bool) -> None:
             step[0] += 1
             dx = 2.0 + (step[0] % 2)
-            if off:
-                _fresh_memo() if current == "cameras" else None
+            if off and current == "cameras":
+                _fresh_memo()
+            if off and current == "players":
+                _fresh_players()
             with factory() as s:
                 editing.update_ball_label(s, fid, box=[box[0] + dx, box[1], box[2] + dx, box[3]], settings=settings)
                 system_page.system_page(s, sid)

@@ -3,7 +3,7 @@ an edit touches are computed again).
 
 An edit changes one view of a system: its label (a ball edit, an exclusion) or its camera (a line edit). The other
 views' cameras, their ball rays, and the pairs they form among themselves and with their mirrored cameras are what
-the last recomputation of the system computed. Three process-wide caches keep them, each keyed so that nothing is
+the last recomputation of the system computed. Four process-wide caches keep them, each keyed so that nothing is
 reused that is not equal to what would be computed:
 
 * :func:`stored_camera`: the :class:`~app.geometry.camera.Camera` of a stored calibration's SoccerNet JSON, one object
@@ -14,7 +14,12 @@ reused that is not equal to what would be computed:
 * :data:`PAIR_GEOMETRY`: one :class:`~app.geometry.triangulation.PairGeometryMemo` for every recomputation of the
   process (:data:`PAIRS` pairs and as many rays kept), keyed by the identity of both cameras (one object per value,
   above) and the bytes of both pixels. A pair of two views the edit did not touch is answered from it; a view
-  whose label or camera changed makes new keys.
+  whose label or camera changed makes new keys;
+* :data:`PAIR_PLAYERS`: one :class:`PairPlayersMemo` for every recomputation of the process (:data:`PAIRS` pairs
+  kept): how far two views' cameras disagree on the players both see
+  (``app.geometry.calibration.players.pair_players_disagreement``, what the ball judged by evidence leaves a pair out
+  for), keyed by the identity of both cameras and the foot points of both views. A ball edit changes neither, so its
+  pairs are answered from it (without it a ball edit's CPU grows by half: ``benchmarks/edit_mechanisms.py``).
 
 The values are the same numbers, bit for bit, as computing them again: the caches only spare the work
 (``tests/services/derivation/test_pair_geometry_shared.py``). Bulk recomputations (imports, jobs) keep their
@@ -27,8 +32,11 @@ import threading
 from collections import OrderedDict
 from typing import Any, Mapping
 
+import numpy as np
 import orjson
 
+from app.geometry.calibration.grass import PlayerKey
+from app.geometry.calibration.players import pair_players_disagreement
 from app.geometry.camera import Camera
 from app.geometry.mirror import mirror_camera
 from app.geometry.triangulation import PairGeometryMemo
@@ -43,6 +51,56 @@ PAIRS = 2048
 
 #: The pair geometry of every recomputation in the process (module docstring).
 PAIR_GEOMETRY = PairGeometryMemo(max_entries=PAIRS)
+
+#: Foot points of a view by player, as ``app.services.calibration.players.feet_of`` gives them.
+Feet = Mapping[PlayerKey, np.ndarray]
+
+
+class PairPlayersMemo:
+    """:func:`~app.geometry.calibration.players.pair_players_disagreement` computed once per pair of cameras and foot
+    points (module docstring). Keyed by the identity of both cameras (one object per value, :func:`stored_camera`),
+    the bytes of both views' foot points with their players' keys, and both image sizes; the memo holds the cameras,
+    so an id is never reused while it lives. Beyond ``max_entries`` the older half is dropped. Safe to share between
+    threads: a race computes a pair twice, never answers a wrong one.
+
+    Raises:
+        ValueError: ``max_entries`` below 2.
+    """
+
+    def __init__(self, max_entries: int) -> None:
+        if max_entries < 2:
+            raise ValueError(f"PairPlayersMemo: max_entries must be at least 2, got {max_entries}")
+        self.max_entries = max_entries
+        self._pairs: dict[tuple, tuple[Camera, Camera, float | None]] = {}
+        self._lock = threading.Lock()
+        self.asked = 0
+        self.computed = 0
+
+    def __call__(self, camera_a: Camera, feet_a: Feet, size_a: tuple[int, int],
+                 camera_b: Camera, feet_b: Feet, size_b: tuple[int, int]) -> float | None:
+        """``pair_players_disagreement`` of the two views (its arguments), computed on the first ask."""
+        key = (id(camera_a), _feet_key(feet_a), size_a, id(camera_b), _feet_key(feet_b), size_b)
+        self.asked += 1
+        hit = self._pairs.get(key)
+        if hit is not None and hit[0] is camera_a and hit[1] is camera_b:
+            return hit[2]
+        self.computed += 1
+        got = pair_players_disagreement(camera_a, feet_a, size_a, camera_b, feet_b, size_b)
+        with self._lock:
+            if len(self._pairs) >= self.max_entries:
+                for old in list(self._pairs)[: len(self._pairs) // 2]:
+                    self._pairs.pop(old, None)
+            self._pairs[key] = (camera_a, camera_b, got)
+        return got
+
+
+def _feet_key(feet: Feet) -> tuple:
+    return tuple((k, np.asarray(uv, float).tobytes()) for k, uv in feet.items())
+
+
+#: How far the cameras of every pair of views disagree on their players, for every recomputation in the process
+#: (module docstring).
+PAIR_PLAYERS = PairPlayersMemo(max_entries=PAIRS)
 
 
 def stored_camera(camera_json: Mapping[str, Any]) -> Camera:

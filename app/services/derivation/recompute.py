@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Callable, Iterable, Sequence, cast
+from typing import Any, Callable, Iterable, Mapping, Sequence, cast
 
 import numpy as np
 from sqlalchemy import func, select
@@ -57,7 +57,7 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
-from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA, pair_players_disagreement
+from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
@@ -81,7 +81,7 @@ from app.services.calibration.players import feet_of, frame_players, place_frame
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.derivation import cameras as shared
-from app.services.derivation.cameras import mirrored_camera, stored_camera
+from app.services.derivation.cameras import PairPlayersMemo, mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
     WeighedViews,
     calibration_weights,
@@ -221,8 +221,11 @@ def recompute_system(session: Session, system: System, settings: Settings,
         if centre is not None and not suggested and takes_part(f, by_evidence):
             observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
                                                 image_width=f.width))
-    if geometry is None:  # each pair's rays once, for the mirror evidence, the triangulation and the doubts, and the
-        geometry = shared.PAIR_GEOMETRY  # pairs of views an edit left as they were (``cameras`` module docstring)
+    # each pair's rays once, for the mirror evidence, the triangulation and the doubts, and the pairs of views an edit
+    # left as they were (``cameras`` module docstring); a bulk recomputation's pairs are asked by no later one
+    players_memo = shared.PAIR_PLAYERS if geometry is None else PairPlayersMemo(max_entries=shared.PAIRS)
+    if geometry is None:
+        geometry = shared.PAIR_GEOMETRY
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the ball and the doubts
@@ -230,7 +233,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
     def ball_of(labelled: list[BallObservation],
                 boxes: dict[int, Sequence[float]] | None = None) -> tuple[TriangulationResult, float | None]:
         return system_ball(system, kind.consensus_observations(system, labelled, settings), settings, weighed,
-                           geometry, weighs_calibrations=kind.weighs_calibrations, boxes=boxes)
+                           geometry, weighs_calibrations=kind.weighs_calibrations, boxes=boxes, players=players_memo)
 
     result, sigma_m = ball_of(observations)
     after_confirming = partial(_error_once_confirmed, cameras, observations, result,
@@ -286,14 +289,17 @@ def takes_part(frame: Frame, by_evidence: bool) -> bool:
     return bool(cal.admitted) or (by_evidence and fits_own_lines(cal.jac_0005))
 
 
-def players_disagree(system: System, observations: Sequence[BallObservation]) -> Callable[[Any, Any], bool]:
+def players_disagree(system: System, cameras: Mapping[Any, Camera],
+                     memo: PairPlayersMemo | None = None) -> Callable[[Any, Any], bool]:
     """View ids ``(a, b)`` of ``system``'s ``observations`` -> whether their cameras put the players both views see
     (class and ID, ``Frame.players``) farther apart than ``LINES_CONTRADICTED_SIGMA`` standard deviations
     (``app.geometry.calibration.players.pair_players_disagreement``; at least three shared players), what
-    :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for. Each view's foot points are read once, on
-    the first pair that asks."""
+    :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for. ``cameras``: view id -> its camera, for
+    every view asked about; ``memo``: where each pair's figure comes from (None: the process's,
+    ``cameras.PAIR_PLAYERS``, which answers the pairs an edit left as they were). Each view's foot points are read
+    once, on the first pair that asks."""
+    ask = memo if memo is not None else shared.PAIR_PLAYERS
     frames = {f.id: f for f in system.frames}
-    cameras = {o.view_id: o.camera for o in observations}
     feet: dict[Any, dict] = {}
 
     def feet_of_view(view_id: Any) -> dict:
@@ -306,8 +312,8 @@ def players_disagree(system: System, observations: Sequence[BallObservation]) ->
         fa, fb = feet_of_view(a), feet_of_view(b)
         if len(fa) < 3 or len(fb) < 3:  # too few players to tell a camera wrong: spare the comparison
             return False
-        got = pair_players_disagreement(cameras[a], fa, (frames[a].width, frames[a].height),
-                                        cameras[b], fb, (frames[b].width, frames[b].height))
+        fr_a, fr_b = frames[a], frames[b]
+        got = ask(cameras[a], fa, (fr_a.width, fr_a.height), cameras[b], fb, (fr_b.width, fr_b.height))
         return got is not None and got > LINES_CONTRADICTED_SIGMA
 
     return disagree
@@ -364,8 +370,8 @@ def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObs
 
 def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
                 geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
-                weighs_calibrations: bool,
-                boxes: dict[int, Sequence[float]] | None = None) -> tuple[TriangulationResult, float | None]:
+                weighs_calibrations: bool, boxes: dict[int, Sequence[float]] | None = None,
+                players: PairPlayersMemo | None = None) -> tuple[TriangulationResult, float | None]:
     """The system's 3D ball and its sigma (metres along its least certain direction, None without a ball).
 
     Under ``settings.ball_rule`` "weights" (or a kind that weighs no calibration) the pairs are judged by class: tau,
@@ -376,16 +382,18 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
     their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
     sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty).
-    ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed)."""
+    ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed);
+    ``players``: where the players' disagreement of a pair comes from (:func:`players_disagree`; None: the
+    process's memo)."""
     sigmas = view_sigmas_px(system, observations, settings, weighed, boxes)
     if judged_by_evidence(settings, weighs_calibrations):
         # a camera the fit leaves undetermined (an infinite sigma) tells nothing of where its ray runs: it makes no pair
         observations = [o for o in observations if math.isfinite(sigmas[cast(int, o.view_id)])]
         paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
                                  min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
+        disagree = players_disagree(system, {o.view_id: o.camera for o in observations}, players)
         judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
-                                   distance_to_volume_m=distance_to_play_volume,
-                                   players_disagree=players_disagree(system, observations))
+                                   distance_to_volume_m=distance_to_play_volume, players_disagree=disagree)
         return judged.result, judged.sigma_m
     weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,

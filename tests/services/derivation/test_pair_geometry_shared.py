@@ -141,3 +141,91 @@ def test_a_memo_answers_a_pair_once_and_never_another_camera() -> None:
     assert memo(BallObservation(1, twin, a.point_px, 1920), b) is not g
     assert memo(BallObservation(1, a_cam, a.point_px + [5.0, 0.0], 1920), b) is not g
     assert memo.computed == 3
+
+
+class _UnsharedPlayers(cameras.PairPlayersMemo):
+    """Each ask computed anew."""
+
+    def __call__(self, camera_a, feet_a, size_a, camera_b, feet_b, size_b):
+        self.asked += 1
+        self.computed += 1
+        from app.geometry.calibration.players import pair_players_disagreement
+        return pair_players_disagreement(camera_a, feet_a, size_a, camera_b, feet_b, size_b)
+
+
+def test_the_players_memo_changes_no_derived_row_and_a_ball_edit_asks_it_nothing_new(
+        shared_dir: Path, fresh_session_factory, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Judged by evidence, each kept pair's cameras are compared on their players (``players_disagree``). The memo
+    shared by every recomputation (``cameras.PAIR_PLAYERS``) gives every derived row of the dev set that a comparison
+    made anew on every ask gives (72 comparisons); the same systems loaded and recomputed again, or a ball label moved
+    (cameras and players as they were), compute none."""
+    session = fresh_session_factory("dev")
+    settings = Settings(_env_file=None, database_url=str(session.get_bind().url), calibration_workers=1,
+                        ball_rule="evidence")
+    import_soccernet_v3(session, shared_dir / "data/synthetic/soccernet-v3-dev", settings)
+    ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
+
+    def run(memo) -> dict[int, tuple]:
+        monkeypatch.setattr(cameras, "PAIR_PLAYERS", memo)
+        out = {}
+        with session.no_autoflush:
+            systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
+            for sid in ids:
+                recompute_system(session, systems[sid], settings)
+                out[sid] = _derived(systems[sid])
+        session.rollback()
+        return out
+
+    unshared_memo = _UnsharedPlayers(max_entries=cameras.PAIRS)
+    unshared = run(unshared_memo)
+    memo = cameras.PairPlayersMemo(max_entries=cameras.PAIRS)
+    shared = run(memo)
+    assert shared == unshared and memo.asked == unshared_memo.asked > 0
+    computed = memo.computed
+    assert run(memo) == shared and memo.computed == computed  # loaded anew: every pair known (stored_camera)
+
+    with session.no_autoflush:
+        systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
+        system = max(systems.values(), key=lambda s: len(s.frames))
+        recompute_system(session, system, settings)
+        computed = memo.computed
+        label = next(f.ball_label for f in system.frames if f.ball_label is not None and f.ball_label.box is not None)
+        label.box = [label.box[0] + 3.0, label.box[1], label.box[2] + 3.0, label.box[3]]
+        recompute_system(session, system, settings)
+    assert memo.computed == computed
+    session.rollback()
+
+
+def test_the_players_memo_answers_a_pair_once_and_never_other_cameras_or_players() -> None:
+    """Keyed by the cameras' identity, the foot points and the sizes: the same pair computed once and equal to the
+    comparison made anew; an equal but distinct camera object, or a foot point moved, computed anew."""
+    import numpy as np
+
+    from app.geometry.calibration.grass import foot_world
+    from app.geometry.calibration.players import pair_players_disagreement
+    from app.geometry.camera import Camera
+
+    def cam(pan: float, pos: list[float]) -> Camera:
+        return Camera.from_parameters(focal_px=1500.0, principal_point=(960.0, 540.0), pan_deg=pan, tilt_deg=80.0,
+                                      roll_deg=0.0, position_m=pos)
+
+    a_cam, b_cam = cam(0.0, [0, 60, -15]), cam(90.0, [-70, 0, -15])
+    grass = np.array([[-3.0, 2.0], [1.0, -4.0], [5.0, 3.0], [2.0, 8.0]])
+
+    def feet(c: Camera) -> dict:
+        uv = c.project(foot_world(grass, c.C))[0]
+        return {("Player team left", str(i)): uv[i] for i in range(len(grass))}
+
+    fa, fb, size = feet(a_cam), feet(b_cam), (1920, 1080)
+    memo = cameras.PairPlayersMemo(max_entries=8)
+    got = memo(a_cam, fa, size, b_cam, fb, size)
+    assert got == pair_players_disagreement(a_cam, fa, size, b_cam, fb, size) and got is not None and got < 1.0
+    assert memo(a_cam, {k: v.copy() for k, v in fa.items()}, size, b_cam, fb, size) == got
+    assert (memo.asked, memo.computed) == (2, 1)
+    memo(cam(0.0, [0, 60, -15]), fa, size, b_cam, fb, size)  # equal, another object
+    moved = dict(fa)
+    moved[("Player team left", "0")] = fa[("Player team left", "0")] + [30.0, 0.0]
+    memo(a_cam, moved, size, b_cam, fb, size)
+    assert memo.computed == 3
+    with pytest.raises(ValueError, match="at least 2"):
+        cameras.PairPlayersMemo(max_entries=1)
