@@ -10,7 +10,9 @@ Attribution, by ablation on the same views: a right ball lost goes to each class
 system a right ball again ("several" when none alone does); a wrong ball avoided goes to each class rule that alone,
 added to the paper's rules, leaves the system without a wrong ball. The rule by evidence is attributed by the reasons
 its pairs were dropped with (``players_disagree``, ``beyond_joint_sigma``, ``sigma_above_bound``,
-``outside_play_volume``), and the views below admission it takes in (``recompute.takes_part``).
+``outside_play_volume``), and the views below admission it takes in (``recompute.takes_part``): a right ball the
+rule by evidence has and the paper's rules not goes to ``below_admission`` when a view below admission is in one of
+its kept pairs, else to ``weighed`` (the pairs' weighing and the joint-sigma gate).
 
 Run: ``.venv/bin/python benchmarks/yield_rules.py DB.sqlite3=TRUTH.json ... [--json OUT]`` (databases as imported by
 ``v3d import soccernet-v3``; read only).
@@ -91,6 +93,7 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
     lost: dict[str, Counter] = {k: Counter() for k in ("v3d_class", "v3d_evidence")}
     avoided: dict[str, Counter] = {k: Counter() for k in ("v3d_class", "v3d_evidence")}
     kept_wrong: dict[str, int] = Counter()
+    gained: Counter = Counter()  # right balls the rule by evidence has and the paper's rules not, by what made them
     with Session(sa.create_engine(url)) as session:
         for match, system in _systems(session, 200, settings.max_predictions_per_frame):
             t = true.get((match, system.name))
@@ -104,6 +107,8 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
                  "v3d_class": _err(_class_ball(obs, weights, settings, memo, set(CLASS_RULES)), t)}
             judged, _ = system_ball(system, _observations(system, True)[0], by_evidence, weighed, memo,
                                     weighs_calibrations=True)
+            in_ball = {v for p in judged.pairs if p.kept for v in (p.view_a, p.view_b)}
+            below = any(f.id in in_ball and not f.calibration.admitted for f in system.frames)
             e["v3d_evidence"] = _err(judged.point, t)
             for k, v in e.items():
                 counts[k]["with_ball"] += v is not None
@@ -119,9 +124,12 @@ def measure(url: str, truth: Any, settings: Settings) -> dict[str, Any]:
                     avoided[k][_why_avoided(k, obs, weights, settings, memo, t, reasons)] += 1
                 if _wrong(e[k]):
                     kept_wrong[k] += 1
+            if _right(e["v3d_evidence"]) and not _right(e["paper"]):
+                gained["below_admission" if below else "weighed"] += 1
     return {"counts": {k: dict(v) for k, v in counts.items()},
             "right_lost_by_rule": {k: dict(v) for k, v in lost.items()},
-            "wrong_avoided_by_rule": {k: dict(v) for k, v in avoided.items()}}
+            "wrong_avoided_by_rule": {k: dict(v) for k, v in avoided.items()},
+            "right_gained_by_evidence": dict(gained)}
 
 
 def _why_lost(k: str, obs, weights, settings, memo, t, reasons: set[str]) -> str:

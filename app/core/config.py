@@ -166,15 +166,17 @@ class Settings(BaseSettings):
     ball_rule: Literal["weights", "evidence"] = Field(
         "evidence",
         description="How the pairs within tau make a system's stored 3D ball (app.services.derivation.recompute."
-        "system_ball). 'evidence' (default): by uncertainty (app.geometry.evidence): the pairs weighed by their "
-        "views' label and calibration pixel sigmas, a pair beyond the others' joint sigma left out, a ball standing "
-        "when its sigma is within ball_max_sigma_m and it lies in the play volume within three sigmas; no parallax "
-        "filter, no veto by class. 'weights' (the rule before it, kept by V3D_PROFILE=paper): by class, the "
-        "parallax filter (min_parallax_deg), the play volume on each pair's point and the calibration weights (a "
-        "few-lined or unsure camera neither makes nor moves a ball alone). On 13 sets with truth 'evidence' keeps "
-        "9-23 more right balls a set than 'weights' and as many or fewer balls more than 1 m off on 12; the doubts, "
-        "the curation pass (0 balls made wrong) and the detector fill are no worse (benchmarks/YIELD.md, 'The rule "
-        "by evidence as the default').",
+        "system_ball). 'evidence' (default): by uncertainty (app.geometry.evidence): every view whose camera fits "
+        "most of its own lines takes part (admitted, or below admission with JaC@0.5 % of at least 0.5), the pairs "
+        "weighed by their views' label and calibration pixel sigmas, a pair whose two cameras disagree on the "
+        "players both views see left out, a pair beyond the others' joint sigma left out, a ball standing when its "
+        "sigma is within ball_max_sigma_m and it lies in the play volume within three sigmas; no parallax filter, "
+        "no veto by class. 'weights' (the rule before it, kept by V3D_PROFILE=paper): admitted views only, by class, "
+        "the parallax filter (min_parallax_deg), the play volume on each pair's point and the calibration weights "
+        "(a few-lined or unsure camera neither makes nor moves a ball alone). On 19 sets with truth, labels as "
+        "imported, 'evidence' keeps more right 3D balls than the paper's rules on every set and at most half their "
+        "balls more than 1 m off; after a pass of the fixes on 28 of 30 served measures (benchmarks/YIELD.md, "
+        "2026-11-29).",
         json_schema_extra=DERIVED,
     )
     ball_max_sigma_m: float = Field(

@@ -167,7 +167,7 @@ export const WORDS = /*WORDS*/{
   "not_admitted": {
    "tone": "bad",
    "chip": "below admission",
-   "means": "the camera fits its lines less well than the admission threshold"
+   "means": "the camera fits its lines less well than the admission threshold; under the rule by evidence it still joins the 3D ball, weighed by its uncertainty, while it fits at least half of its lines"
   },
   "excluded": {
    "tone": "bad",

@@ -166,7 +166,26 @@ def _fused(seen: Mapping[PlayerKey, list[tuple[np.ndarray, np.ndarray]]], max_sp
     """Each player's ground points (m) and their information matrices (1/m^2) fused by information; a player whose
     points lie farther than ``max_spread_m`` from the fused one, or outside the pitch and 5 m, left out."""
     out: dict[PlayerKey, GrassPlayer] = {}
+    # The players one view saw (most of them, and every player of one view's grass) at once: each matrix product and
+    # inverse the one the loop below would give, to the bit.
+    single = [k for k, points in seen.items() if len(points) == 1]
+    if single:
+        P = np.array([seen[k][0][0] for k in single])
+        info = np.array([seen[k][0][1] for k in single])
+        covs = np.linalg.inv(info)
+        centres = (covs @ (info @ P[..., None]))[..., 0]
+        spreads = np.linalg.norm(P - centres, axis=1)
+        inside = ((np.abs(centres[:, 0]) <= PITCH_LENGTH_M / 2 + 5.0)
+                  & (np.abs(centres[:, 1]) <= PITCH_WIDTH_M / 2 + 5.0))
+        for j, key in enumerate(single):
+            if inside[j]:
+                c = covs[j]
+                out[key] = GrassPlayer(point_m=(float(centres[j, 0]), float(centres[j, 1])), views=1,
+                                       spread_m=float(spreads[j]),
+                                       cov_m2=((float(c[0, 0]), float(c[0, 1])), (float(c[1, 0]), float(c[1, 1]))))
     for key, points in seen.items():
+        if len(points) == 1:
+            continue
         P = np.array([p for p, _ in points])
         cov = np.linalg.inv(sum(i for _, i in points))
         centre = cov @ sum(i @ p for p, i in points)
@@ -177,7 +196,7 @@ def _fused(seen: Mapping[PlayerKey, list[tuple[np.ndarray, np.ndarray]]], max_sp
             continue
         out[key] = GrassPlayer(point_m=(float(centre[0]), float(centre[1])), views=len(points), spread_m=spread,
                                cov_m2=((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))))
-    return out
+    return {key: out[key] for key in seen if key in out}  # in the order the players were seen
 
 
 def head_grass_points(camera: Camera, pixels: np.ndarray, height_m: float = HEAD_HEIGHT_M,

@@ -123,7 +123,9 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
     "note": {
         "not_calibrated": {"tone": "bad", "chip": "no camera", "means": "the view has no calibrated camera"},
         "not_admitted": {"tone": "bad", "chip": "below admission",
-                         "means": "the camera fits its lines less well than the admission threshold"},
+                         "means": "the camera fits its lines less well than the admission threshold; under the rule "
+                                  "by evidence it still joins the 3D ball, weighed by its uncertainty, while it fits "
+                                  "at least half of its lines"},
         "excluded": {"tone": "bad", "chip": "excluded",
                      "means": "a reviewer left the view out of the 3D ball (x restores it)"},
         "error_above_tau": {"tone": "bad", "chip": "error > τ",
