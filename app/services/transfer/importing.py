@@ -90,6 +90,7 @@ from app.services.calibration.players import (
 )
 from app.services.calibration.pool import CalibrationPool, calibration_pool
 from app.services.calibration.rigs import uses_rig
+from app.services.derivation.loading import load_view_players
 from app.services.derivation.recompute import (
     calibrate_frame_lines,
     preload_systems,
@@ -250,6 +251,9 @@ def _write_batch(session: Session, merged: MergedBatch, results: list[Calibratio
     for frame, fields in imported:
         apply_calibration(frame, fields, CalibrationSource.IMPORTED)
     store_players(session, merged.new_players)
+    # written past the ORM, so read back in one query: the ball judged by evidence compares each pair's players, and
+    # a lazy load per view would flush the session every time
+    load_view_players(session, [f for f, _, _ in merged.new_players])
     # The games new to the database had their players place their cameras in the pool, with their calibration;
     # the other systems' are placed here, on what was just stored.
     for i, fields in first.placed.items():
