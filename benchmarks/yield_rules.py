@@ -3,14 +3,14 @@ system where the paper's rules give a right ball (within 0.5 m) and v3d's rules 
 that refused it, and every wrong ball (more than 1 m off) the paper keeps, with the v3d rule that refuses it; and the
 right and wrong counts of the paper's rules, of v3d's rules by class (the parallax threshold, the play volume tested
 on each pair, the calibration weights: ``weak_calibrations`` and ``outweighed``; the default ``ball_rule``
-"weights") and of v3d's rule by evidence (``ball_rule`` "evidence", ``app.services.derivation.recompute.system_ball``
+"weights") and of v3d's rule by evidence (``ball_rule`` "evidence", ``app.services.derivation.ball.system_ball``
 with the bound ``ball_max_sigma_m``), all in process on the same stored calibrations and labels.
 
 Attribution, by ablation on the same views: a right ball lost goes to each class rule whose removal alone gives the
 system a right ball again ("several" when none alone does); a wrong ball avoided goes to each class rule that alone,
 added to the paper's rules, leaves the system without a wrong ball. The rule by evidence is attributed by the reasons
 its pairs were dropped with (``players_disagree``, ``beyond_joint_sigma``, ``sigma_above_bound``,
-``outside_play_volume``), and the views below admission it takes in (``recompute.takes_part``): a right ball the
+``outside_play_volume``), and the views below admission it takes in (``ball.takes_part``): a right ball the
 rule by evidence has and the paper's rules not goes to ``below_admission`` when a view below admission is in one of
 its kept pairs, else to ``weighed`` (the pairs' weighing and the joint-sigma gate).
 
@@ -36,16 +36,16 @@ from app.core.config import Settings  # noqa: E402  # after the path is set
 from app.db.session import upgrade_database  # noqa: E402  # after the path is set
 from app.geometry.pitch import within_play_volume  # noqa: E402  # after the path is set
 from app.geometry.triangulation import BallObservation, PairGeometryMemo, triangulate_ball  # noqa: E402  # after the path is set
+from app.services.derivation.ball import system_ball, takes_part  # noqa: E402  # after the path is set
 from app.services.derivation.cameras import stored_camera  # noqa: E402  # after the path is set
 from app.services.derivation.doubts import calibration_weights, weighed_views  # noqa: E402  # after the path is set
-from app.services.derivation.recompute import system_ball, takes_part  # noqa: E402  # after the path is set
 from app.services.evaluation.ball_yield import RIGHT_M, WRONG_M, _systems, paper_ball, truth_balls  # noqa: E402  # after the path is set
 
 CLASS_RULES = ("parallax", "play_volume", "weights")
 
 
 def _observations(system: Any, by_evidence: bool = False) -> tuple[list[BallObservation], dict[int, Any]]:
-    """The observations v3d's recomputation triangulates (the views that take part, ``recompute.takes_part``, under
+    """The observations v3d's recomputation triangulates (the views that take part, ``ball.takes_part``, under
     the rule by class or, ``by_evidence``, by evidence; labelled, not suggested) and the cameras of the calibrated
     frames."""
     cameras, obs = {}, []

@@ -143,7 +143,7 @@ def fits_own_lines(jac: float | None) -> bool:
     """Whether a camera below admission (JaC@0.5 % ``jac``, a fraction, at most ``admit_jac_min``; None without one)
     still fits most of its own field lines (:data:`MIN_OWN_LINES_JAC`): its stated uncertainty then speaks for it, in
     the doubts' votes (:func:`calibration_weight`) and in the ball judged by evidence
-    (``app.services.derivation.recompute.takes_part``). SoccerNet's JaC: the share of the annotated line points
+    (``app.services.derivation.ball.takes_part``). SoccerNet's JaC: the share of the annotated line points
     within gamma of the camera's projected lines (``app.geometry.jac``)."""
     return (jac or 0.0) >= MIN_OWN_LINES_JAC
 

@@ -10,7 +10,7 @@ Admission and calibration: ``app.services.calibration.calibrating`` (the frame's
 
 Derived rows:
 
-* ``Triangulation`` (+ ``TriangulationPair`` per pair of labelled views that take part, :func:`takes_part`), always
+* ``Triangulation`` (+ ``TriangulationPair`` per pair of labelled views that take part, ``ball.takes_part``), always
   present after recomputation, with the status of ``app.geometry.triangulation.triangulate_ball``;
 * ``BallReprojection`` for every frame with a camera when the system has a 3D ball (the error is
   against the frame's label, None without one);
@@ -29,10 +29,9 @@ other evidence (a single frame, a view without a ball). Labels are never changed
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Callable, Iterable, Mapping, Sequence, cast
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 from sqlalchemy import func, select
@@ -57,37 +56,26 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
-from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
-from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
-from app.geometry.evidence import judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
 from app.geometry.mirror import MirrorView, mirror_evidence
-from app.geometry.pair_error import REFERENCE_WIDTH_PX, error_above_tau
-from app.geometry.pitch import distance_to_play_volume, within_play_volume
+from app.geometry.pair_error import error_above_tau
 from app.geometry.triangulation import (
     BallObservation,
-    PairGeometry,
     PairGeometryMemo,
     TriangulationResult,
-    triangulate_ball,
 )
-from app.geometry.weighting import fits_own_lines
 from app.services.audit.log import record_summary
 from app.services.calibration.admission import is_admitted
 from app.services.calibration.calibrating import apply_calibration, calibrate_lines, calibration_job, expected_side
-from app.services.calibration.players import feet_of, frame_players, place_frame_by_players, players_mirror_evidence
+from app.services.calibration.players import place_frame_by_players, players_mirror_evidence
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.derivation import cameras as shared
+from app.services.derivation.ball import judged_by_evidence, system_ball, takes_part
 from app.services.derivation.cameras import PairPlayersMemo, mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
-    WeighedViews,
-    calibration_weights,
-    doubt_settings,
-    fitted_frames,
-    is_excluded,
     update_doubts,
     update_label_distances,
     weighed_views,
@@ -198,8 +186,9 @@ def recompute_system(session: Session, system: System, settings: Settings,
         rig_sources: ``(frame id, camera centre)`` feeding the game's rig (:func:`rig_centres`), to spare
             a query per system in bulk; read from the session when None.
         geometry: where the pairs' geometry comes from; None: the process's memo shared by every edit
-            (``cameras.PAIR_GEOMETRY``, which keeps the pairs of the views an edit leaves as they were), a memo of its
-            own for a system recomputed in bulk, which no later recomputation asks again.
+            (``cameras.PAIR_GEOMETRY``, which keeps the pairs of the views an edit leaves as they were, and
+            ``cameras.PAIR_PLAYERS`` for the pairs' players), a memo of its own for a system recomputed in bulk,
+            which no later recomputation asks again (and one for its players).
 
     Returns:
         The system's :class:`Triangulation` row.
@@ -208,24 +197,11 @@ def recompute_system(session: Session, system: System, settings: Settings,
     frames = list(system.frames)
     kind = kind_of(system)
     by_evidence = judged_by_evidence(settings, kind.weighs_calibrations)
-    cameras: dict[int, Camera] = {}
-    observations: list[BallObservation] = []
-    for f in frames:
-        cal = f.calibration
-        if cal is not None:
-            put_values(cal, {"admitted": is_admitted(cal, settings)})
-            if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
-                cameras[f.id] = stored_camera(cal.camera)
-        centre = _label_centre(f)
-        suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
-        if centre is not None and not suggested and takes_part(f, by_evidence):
-            observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
-                                                image_width=f.width))
-    # each pair's rays once, for the mirror evidence, the triangulation and the doubts, and the pairs of views an edit
-    # left as they were (``cameras`` module docstring); a bulk recomputation's pairs are asked by no later one
+    cameras, observations = _views_taking_part(frames, settings, by_evidence)
+    # each pair's rays (and players) once, for the mirror evidence, the triangulation and the doubts, and the pairs of
+    # views an edit left as they were (``cameras`` module docstring); a bulk recomputation's are asked by no later one
     players_memo = shared.PAIR_PLAYERS if geometry is None else PairPlayersMemo(max_entries=shared.PAIRS)
-    if geometry is None:
-        geometry = shared.PAIR_GEOMETRY
+    geometry = shared.PAIR_GEOMETRY if geometry is None else geometry
     if kind.broadcast_priors:
         _update_mirror_flags(session, system, cameras, settings, rig_sources, geometry)
     weighed = weighed_views(system, settings, cameras)  # the judge's views, once for the ball and the doubts
@@ -269,81 +245,24 @@ def recompute_system(session: Session, system: System, settings: Settings,
     return tri
 
 
-def judged_by_evidence(settings: Settings, weighs_calibrations: bool) -> bool:
-    """Whether a system's 3D ball is judged by evidence (``settings.ball_rule`` "evidence", for a kind that weighs its
-    calibrations: :func:`system_ball`), else by class."""
-    return settings.ball_rule == "evidence" and weighs_calibrations
-
-
-def takes_part(frame: Frame, by_evidence: bool) -> bool:
-    """Whether ``frame``'s view may join its system's 3D ball, its label aside: calibrated, not excluded by a person
-    (``is_excluded``), and admitted (``Calibration.admitted``: JaC@gamma above ``admit_jac_min``, the paper's rule); or,
-    when the ball is judged by evidence (``by_evidence``, :func:`judged_by_evidence`), below admission while its
-    camera still fits most of its own lines (``app.geometry.weighting.fits_own_lines``, JaC@0.5 %, as for the doubts'
-    votes). Such a view's ray is then weighed by its uncertainty like any other's: a JaC threshold is a rule by class,
-    and a camera fitted to two or three line classes fits them exactly yet scores a coarse JaC (2 of 3 lines, 0.67)
-    whatever its pose."""
-    cal = frame.calibration
-    if cal is None or cal.status is not CalibrationStatus.CALIBRATED or cal.camera is None or is_excluded(frame):
-        return False
-    return bool(cal.admitted) or (by_evidence and fits_own_lines(cal.jac_0005))
-
-
-def players_disagree(system: System, cameras: Mapping[Any, Camera],
-                     memo: PairPlayersMemo | None = None) -> Callable[[Any, Any], bool]:
-    """View ids ``(a, b)`` of ``system``'s ``observations`` -> whether their cameras put the players both views see
-    (class and ID, ``Frame.players``) farther apart than ``LINES_CONTRADICTED_SIGMA`` standard deviations
-    (``app.geometry.calibration.players.pair_players_disagreement``; at least three shared players), what
-    :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for. ``cameras``: view id -> its camera, for
-    every view asked about; ``memo``: where each pair's figure comes from (None: the process's,
-    ``cameras.PAIR_PLAYERS``, which answers the pairs an edit left as they were). Each view's foot points are read
-    once, on the first pair that asks."""
-    ask = memo if memo is not None else shared.PAIR_PLAYERS
-    frames = {f.id: f for f in system.frames}
-    feet: dict[Any, dict] = {}
-
-    def feet_of_view(view_id: Any) -> dict:
-        if view_id not in feet:
-            f = frames[view_id]
-            feet[view_id] = feet_of(frame_players(f), f.width, f.height)
-        return feet[view_id]
-
-    def disagree(a: Any, b: Any) -> bool:
-        fa, fb = feet_of_view(a), feet_of_view(b)
-        if len(fa) < 3 or len(fb) < 3:  # too few players to tell a camera wrong: spare the comparison
-            return False
-        fr_a, fr_b = frames[a], frames[b]
-        got = ask(cameras[a], fa, (fr_a.width, fr_a.height), cameras[b], fb, (fr_b.width, fr_b.height))
-        return got is not None and got > LINES_CONTRADICTED_SIGMA
-
-    return disagree
-
-
-def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
-                   weighed: WeighedViews, boxes: dict[int, Sequence[float]] | None = None) -> dict[int, float]:
-    """Frame id -> the pixel sigma (px at 1920 width) of each observation's view
-    (:func:`app.geometry.evidence.view_sigma_px`): its label's centre noise (``CENTRE_NOISE`` of its box's diameter)
-    and its calibration's pixel sigma (``weighed``; 0 for a camera not fitted to the view's lines, which
-    :func:`calibration_weights` counts full; at least ``consensus_tau_px`` for a camera fitted to fewer than
-    ``min_line_classes`` line classes) in quadrature, at least ``MIN_SIGMA_PX``. ``boxes``: frame id -> a ball box
-    (px) standing for that view's stored label."""
-    fitted = fitted_frames(system)
-    s = doubt_settings(settings)
-    lines = {v.view_id: v.line_classes for v in weighed.views}
-    frames = {f.id: f for f in system.frames}
-    out: dict[int, float] = {}
-    for o in observations:
-        fid = cast(int, o.view_id)
-        f = frames[fid]
-        box = (boxes or {}).get(fid) or (f.ball_label.box if f.ball_label is not None else None)
-        d = None if box is None else (abs(box[2] - box[0]) + abs(box[3] - box[1])) / 2 * REFERENCE_WIDTH_PX / f.width
-        cal_sigma = weighed.weighed[fid][1] if fid in fitted and fid in weighed.weighed else 0.0
-        if fid in fitted and lines.get(fid, 0) < s.min_line_classes:
-            # a camera fitted to fewer classes than fix it fits them exactly: no residual speaks for its stated
-            # uncertainty, so it is known only to the consensus tolerance, what a ball the others agree on allows
-            cal_sigma = max(cal_sigma, s.consensus_tau_px)
-        out[fid] = view_sigma_px(d, cal_sigma, CENTRE_NOISE, MIN_SIGMA_PX)
-    return out
+def _views_taking_part(frames: Sequence[Frame], settings: Settings, by_evidence: bool
+                    ) -> tuple[dict[int, Camera], list[BallObservation]]:
+    """Each frame's admission set on its calibration (``is_admitted``), the cameras of the calibrated frames by frame
+    id, and the ball observations of the frames that take part (``ball.takes_part``) with a label a person placed."""
+    cameras: dict[int, Camera] = {}
+    observations: list[BallObservation] = []
+    for f in frames:
+        cal = f.calibration
+        if cal is not None:
+            put_values(cal, {"admitted": is_admitted(cal, settings)})
+            if cal.status is CalibrationStatus.CALIBRATED and cal.camera is not None:
+                cameras[f.id] = stored_camera(cal.camera)
+        centre = _label_centre(f)
+        suggested = f.ball_label is not None and f.ball_label.suggested  # not independent evidence until placed
+        if centre is not None and not suggested and takes_part(f, by_evidence):
+            observations.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre,
+                                                image_width=f.width))
+    return cameras, observations
 
 
 def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObservation],
@@ -354,7 +273,7 @@ def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObs
     """How far (px of ``frame``'s image) a label centred at ``centre`` (its box ``box``, px, or None) would lie from
     the 3D ball once a person confirmed it there: the ball ``triangulated`` with it, its box standing for the view's
     label (a label's size is its pixel noise under the rule by evidence), as the recomputation that gave ``result``
-    from ``observations`` triangulates (when the view takes part: :func:`takes_part`), else ``result``'s ball;
+    from ``observations`` triangulates (when the view takes part: ``ball.takes_part``), else ``result``'s ball;
     None where there would be none, or no camera."""
     camera = cameras.get(frame.id)
     if camera is None:
@@ -366,43 +285,6 @@ def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObs
         ball = triangulated([*(o for o in observations if o.view_id != frame.id), confirmed],
                             None if box is None else {frame.id: box}).point
     return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
-
-
-def system_ball(system: System, observations: Sequence[BallObservation], settings: Settings, weighed: WeighedViews,
-                geometry: Callable[[BallObservation, BallObservation], PairGeometry], *,
-                weighs_calibrations: bool, boxes: dict[int, Sequence[float]] | None = None,
-                players: PairPlayersMemo | None = None) -> tuple[TriangulationResult, float | None]:
-    """The system's 3D ball and its sigma (metres along its least certain direction, None without a ball).
-
-    Under ``settings.ball_rule`` "weights" (or a kind that weighs no calibration) the pairs are judged by class: tau,
-    the baseline, the parallax setting, the play volume on each pair's point and, when ``weighs_calibrations``, the
-    calibration weights (:func:`calibration_weights`: a few-lined or unsure camera neither makes nor moves a ball
-    alone); the ball's sigma is then that of the views of the kept pairs at their pixel sigmas
-    (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
-    Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
-    their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
-    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty).
-    ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed);
-    ``players``: where the players' disagreement of a pair comes from (:func:`players_disagree`; None: the
-    process's memo)."""
-    sigmas = view_sigmas_px(system, observations, settings, weighed, boxes)
-    if judged_by_evidence(settings, weighs_calibrations):
-        # a camera the fit leaves undetermined (an infinite sigma) tells nothing of where its ray runs: it makes no pair
-        observations = [o for o in observations if math.isfinite(sigmas[cast(int, o.view_id)])]
-        paper = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                                 min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
-        disagree = players_disagree(system, {o.view_id: o.camera for o in observations}, players)
-        judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
-                                   distance_to_volume_m=distance_to_play_volume, players_disagree=disagree)
-        return judged.result, judged.sigma_m
-    weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
-    result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,
-                              min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
-                              play_volume=lambda p: bool(within_play_volume(p)[0]),  # pitch.PLAY_VOLUME
-                              view_weights=weights, geometry=geometry)
-    if result.point is None:
-        return result, None
-    return result, kept_pairs_sigma_m(observations, result.pairs, result.point, sigmas)
 
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:
