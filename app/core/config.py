@@ -175,7 +175,7 @@ class Settings(BaseSettings):
         "the parallax filter (min_parallax_deg), the play volume on each pair's point and the calibration weights "
         "(a few-lined or unsure camera neither makes nor moves a ball alone). On 19 sets with truth, labels as "
         "imported, 'evidence' keeps more right 3D balls than the paper's rules on every set and at most half their "
-        "balls more than 1 m off; after a pass of the fixes on 28 of 30 served measures (benchmarks/YIELD.md, "
+        "balls more than 1 m off; after a pass of the fixes on 15 of 18 served measures (benchmarks/YIELD.md, "
         "2026-11-29).",
         json_schema_extra=DERIVED,
     )
