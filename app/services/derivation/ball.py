@@ -77,8 +77,6 @@ def players_disagree(system: System, cameras: Mapping[Any, Camera],
 
     def disagree(a: Any, b: Any) -> bool:
         fa, fb = feet_of_view(a), feet_of_view(b)
-        if len(fa) < 3 or len(fb) < 3:  # too few players to tell a camera wrong: spare the comparison
-            return False
         fr_a, fr_b = frames[a], frames[b]
         got = ask(cameras[a], fa, (fr_a.width, fr_a.height), cameras[b], fb, (fr_b.width, fr_b.height))
         return got is not None and got > LINES_CONTRADICTED_SIGMA

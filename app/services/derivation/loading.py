@@ -84,8 +84,6 @@ def load_systems(session: Session, ids: Sequence[int], system_rows: tuple[Any, .
                     _hand_over(f, "predictions", best[f.id])
         if players:  # the ball judged by evidence compares the players its views' cameras place, and the detector's
             load_view_players(session, [f for fs in frames.values() for f in fs])  # check reads the person boxes
-        elif predictions is not None:
-            load_view_players(session, [f for fs in frames.values() for f in fs if best[f.id]])
         for sid, system in systems.items():
             _hand_over(system, "frames", frames[sid])
             _hand_over(system, "doubts", doubts[sid])

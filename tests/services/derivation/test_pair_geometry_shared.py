@@ -46,6 +46,21 @@ def _derived(system: System) -> tuple:
             [_values(d) for d in system.doubts], summary)
 
 
+def _recomputed_with(session, ids: list[int], settings: Settings, monkeypatch: pytest.MonkeyPatch, memo_name: str,
+                     memo) -> dict[int, tuple]:
+    """Every system of ``ids`` loaded and recomputed with the process memo ``cameras.<memo_name>`` set to ``memo``:
+    what each wrote (:func:`_derived`), by id; rolled back after."""
+    monkeypatch.setattr(cameras, memo_name, memo)
+    out = {}
+    with session.no_autoflush:
+        systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
+        for sid in ids:
+            recompute_system(session, systems[sid], settings)
+            out[sid] = _derived(systems[sid])
+    session.rollback()
+    return out
+
+
 def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: Path, fresh_session_factory,
                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """The memo shared by every recomputation of the process (``cameras.PAIR_GEOMETRY``) gives the rows of judges that
@@ -57,15 +72,7 @@ def test_shared_pair_geometry_changes_no_derived_row_of_the_dev_set(shared_dir: 
     assert len(ids) == 40
 
     def run(memo) -> dict[int, tuple]:
-        monkeypatch.setattr(cameras, "PAIR_GEOMETRY", memo)
-        out = {}
-        with session.no_autoflush:
-            systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
-            for sid in ids:
-                recompute_system(session, systems[sid], settings)
-                out[sid] = _derived(systems[sid])
-        session.rollback()
-        return out
+        return _recomputed_with(session, ids, settings, monkeypatch, "PAIR_GEOMETRY", memo)
 
     unshared_memo = _Unshared()
     unshared = run(unshared_memo)
@@ -166,15 +173,7 @@ def test_the_players_memo_changes_no_derived_row_and_a_ball_edit_asks_it_nothing
     ids = session.scalars(sa.select(System.id).order_by(System.id)).all()
 
     def run(memo) -> dict[int, tuple]:
-        monkeypatch.setattr(cameras, "PAIR_PLAYERS", memo)
-        out = {}
-        with session.no_autoflush:
-            systems = load_for_recompute(session, ids, predictions=settings.max_predictions_per_frame)
-            for sid in ids:
-                recompute_system(session, systems[sid], settings)
-                out[sid] = _derived(systems[sid])
-        session.rollback()
-        return out
+        return _recomputed_with(session, ids, settings, monkeypatch, "PAIR_PLAYERS", memo)
 
     unshared_memo = _UnsharedPlayers(max_entries=cameras.PAIRS)
     unshared = run(unshared_memo)
