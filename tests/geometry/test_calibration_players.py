@@ -523,3 +523,24 @@ def test_two_right_cameras_of_one_instant_agree_on_their_players_a_mirrored_one_
     assert desync is not None and desync > LINES_CONTRADICTED_SIGMA
     two = dict(list(feet_replay.items())[:2])
     assert pair_players_disagreement(main, feet_main, size, replay, two, size) is None
+
+
+def test_player_boxes_off_the_image_or_degenerate_never_reach_the_pair_comparison() -> None:
+    """A dataset from outside is untrusted: boxes at 1e300 px, far outside the image, at the image's corner or upside
+    down give no foot point (``feet_of``), so the pair comparison reads only the sound players and answers as without
+    them, never raising."""
+    from app.services.calibration.players import feet_of
+
+    rng = np.random.default_rng(1)
+    main = camera_at(np.array([0.0, 60.0, -14.0]), (-35.0, 0.0, 0.0), 1800.0)
+    replay = camera_at(CENTRE, (-35.0, 2.0, 0.0), 2600.0)
+    pts = players(6, rng)
+    feet_main, feet_replay = feet_in(main, pts), feet_in(replay, pts)
+    clean = pair_players_disagreement(main, feet_main, (W, H), replay, feet_replay, (W, H))
+    assert clean is not None
+    for box in ((1e300, 1e300, 1e300 + 1, 1e300 + 1), (-1e300, -1e300, 1e300, 1e300), (1e15, 5.0, 1e15 + 9, 40.0),
+                (0.0, 0.0, 1.0, 1.0), (100.0, 300.0, 120.0, 200.0)):
+        hostile = feet_of([("Player team left", f"x{i}", box) for i in range(6)], W, H)
+        assert hostile == {}
+        got = pair_players_disagreement(main, feet_main, (W, H), replay, {**feet_replay, **hostile}, (W, H))
+        assert got == clean
