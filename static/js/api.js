@@ -4,6 +4,7 @@
 // A stale one fails with ApiError status 412, whose body holds {current, etag, last_change}.
 
 import { keepDrafts } from "./drafts.js";
+import { whileWorking } from "./busy.js";
 
 export class ApiError extends Error {
   constructor(status, message, body) {
@@ -89,8 +90,14 @@ function toLogin() {
 /** fetch with the CSRF header on writes (unless `init.csrf` is false: the login, before any session)
  * and the 401 rule; `init.body` as given (JSON text or FormData). Answers {body (parsed), etag (the
  * answer's ETag header: a write's edited resource's new version), entry (X-V3D-Audit-Entry: the
- * audit entry of the write, else null)}, or throws ApiError. */
-async function fetchJson(method, url, { csrf = true, ...init } = {}) {
+ * audit entry of the write, else null)}, or throws ApiError. The request is the page's work (busy.js) until it is
+ * answered, unless `init.background` says it only keeps the page fresh (a poll, a heartbeat, a warm-up). */
+function fetchJson(method, url, { background = false, ...init } = {}) {
+  const answer = fetchAnswer(method, url, init);
+  return background ? answer : whileWorking("request", answer);
+}
+
+async function fetchAnswer(method, url, { csrf = true, ...init } = {}) {
   // the session is asked about once before any other call: a page opened logged out goes to the login after that
   // one 401, not after a burst of its calls all refused
   if (needsSession(url)) await getMe();
@@ -178,9 +185,10 @@ export function listSystems(params) {
   return request("GET", `/api/systems${toQuery(params)}`);
 }
 
-/** GET /api/jobs: background jobs (imports, recomputes, exports), newest first, with their progress. */
-export function listJobs(params = {}) {
-  return request("GET", `/api/jobs${toQuery(params)}`);
+/** GET /api/jobs: background jobs (imports, recomputes, exports), newest first, with their progress. `options`:
+ * fetchJson's (`background` for a poll). */
+export function listJobs(params = {}, options = {}) {
+  return request("GET", `/api/jobs${toQuery(params)}`, undefined, options);
 }
 
 /** GET /api/games: the games, for the game filter. */
@@ -190,8 +198,8 @@ export function listGames() {
 
 /** GET /api/systems/{id}: the system view (docs/api.md). `params` are the queue filters,
  * so that prev_id / next_id follow the queue the reviewer came from. */
-export function getSystem(id, params = {}) {
-  return request("GET", `/api/systems/${encodeURIComponent(id)}${toQuery(params)}`);
+export function getSystem(id, params = {}, options = {}) {
+  return request("GET", `/api/systems/${encodeURIComponent(id)}${toQuery(params)}`, undefined, options);
 }
 
 /** POST /api/systems/{id}/review {status, comment}, If-Match: the system view's etag; {body: the decision, etag}. */

@@ -64,7 +64,7 @@ export class QueueAssignment {
     let answer;
     try {
       answer = await send("GET", `/api/systems?${new URLSearchParams(
-        Object.entries(this.params()).filter(([, v]) => v !== "" && v !== undefined && v !== null))}`);
+        Object.entries(this.params()).filter(([, v]) => v !== "" && v !== undefined && v !== null))}`, { background: true });
     } catch {
       return; // a hint only: the next load shows the truth
     }

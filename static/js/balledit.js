@@ -4,6 +4,7 @@
 // edit ends; then the view dispatches "ball-change" {frameId, box} or {frameId, point} (rounded to 0.1 px),
 // which the page saves. The view panel (overlay.js) owns one editor: `panel.ball`.
 
+import { working } from "./busy.js";
 import { pointerImagePx } from "./format.js";
 import { boxCentre, clamp, validBox, validPoint } from "./viewfacts.js";
 
@@ -14,6 +15,7 @@ export class BallEditor {
   #live = null; // box or point being edited (image pixels)
   #drag = null;
   #nudgeTimer = null;
+  #nudgeWork = null; // ends the page's work of a nudge waiting for its pause (busy.js)
 
   /** `panel`: the view panel (its `view`, `saving`, `redraw()`, `revert()`, `freezeZoom()`, and the events it
    * dispatches). */
@@ -130,6 +132,7 @@ export class BallEditor {
     clearTimeout(this.#nudgeTimer);
     this.#nudgeTimer = null;
     if (this.#live && !this.#panel.saving) this.#commit();
+    this.#nudgeWork?.();
   }
 
   /** Keyboard editing: move by (dx, dy) and grow every side by `grow` image pixels; saved after a pause.
@@ -149,9 +152,11 @@ export class BallEditor {
     this.#panel.freezeZoom();
     this.#panel.redraw();
     clearTimeout(this.#nudgeTimer);
+    if (this.#nudgeTimer === null) this.#nudgeWork = working("nudge");
     this.#nudgeTimer = setTimeout(() => {
       this.#nudgeTimer = null;
-      this.#commit();
+      this.#commit(); // the save is the page's work from here (systemwrites.js)
+      this.#nudgeWork();
     }, 450);
     return true;
   }

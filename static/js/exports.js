@@ -7,6 +7,7 @@
 // panel offers the releases alone (`mountExports(root, { releasesOnly: true })`), the newest chosen.
 
 import { getMe, send } from "./api.js";
+import { whileWorking } from "./busy.js";
 import { jobProgressText, progressBar } from "./jobs.js";
 import { el, fmtBytes, showError } from "./format.js";
 // the exports offered ({id, label, format, body, title}), written from the server's registry of export formats
@@ -109,7 +110,7 @@ class ExportsPanel {
         headers: { "Content-Type": "application/json" },
         body: JSON.stringify({ ...x.body, ...this.scopeBody() }),
       });
-      await this.follow(job, cell);
+      await whileWorking("job", this.follow(job, cell)); // the page's work until the job ends (busy.js)
     } catch (err) {
       showError(`${x.label} export: ${err.message}`);
     } finally {

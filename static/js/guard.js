@@ -46,13 +46,7 @@ export class AcceptGuard {
     el("div", { class: "guard-actions" }, this.confirmButton, this.cancelButton));
     this.dialog.addEventListener("keydown", (e) => {
       e.stopPropagation(); // the page's keys wait while the guard is open
-      if (e.key === "Enter") {
-        e.preventDefault();
-        this.#close(true);
-      } else if (e.key === "Escape") {
-        e.preventDefault();
-        this.#close(false);
-      }
+      this.key(e);
     });
     this.dialog.addEventListener("cancel", (e) => {
       e.preventDefault();
@@ -65,12 +59,26 @@ export class AcceptGuard {
     return this.dialog.open;
   }
 
+  /** A key while the guard is open (typed in it, or typed ahead and applied by the page's key queue): Enter accepts,
+   * Esc cancels; true when it was one of them. */
+  key(e) {
+    if (e.key !== "Enter" && e.key !== "Escape") return false;
+    e.preventDefault();
+    this.#close(e.key === "Enter");
+    return true;
+  }
+
+  /** Whether accepting `sys` asks the person first (open label doubts, or several views without a 3D ball). */
+  asks(sys) {
+    return openLabelDoubts(sys).length > 0 || lacksBall(sys);
+  }
+
   /** Resolve true when `sys` may be accepted: at once without open label doubts, else when the person
    * confirms (Enter or the button); false when they cancel (Esc or the button). */
   ask(sys) {
     const doubts = openLabelDoubts(sys);
     const noBall = lacksBall(sys);
-    if (!doubts.length && !noBall) return Promise.resolve(true);
+    if (!this.asks(sys)) return Promise.resolve(true);
     const over = doubts.length ? ` over ${doubts.length} open doubt${doubts.length === 1 ? "" : "s"}` : "";
     this.title.textContent = `Accept ${sys.name}${noBall ? " without a 3D ball" : ""}${over}?`;
     this.dialog.setAttribute("aria-label", noBall ? "accept without a 3D ball" : "accept over open doubts");

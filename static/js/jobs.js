@@ -118,7 +118,7 @@ export class JobsPanel {
   async poll() {
     let delay = SLOW_MS;
     try {
-      const page = await listJobs({ limit: 20 });
+      const page = await listJobs({ limit: 20 }, { background: true }); // a poll: never the page's work (busy.js)
       if (this.reported === null) this.reported = new Set(page.items.filter((j) => !ACTIVE.has(j.state)).map((j) => j.id));
       const active = page.items.filter((j) => ACTIVE.has(j.state));
       const finished = page.items.filter((j) => !ACTIVE.has(j.state)).slice(0, RECENT_FINISHED);

@@ -14,6 +14,7 @@
 // with `undo_of`, for the others POST /api/audit/{id}/undo), so the server audits it as that edit's undo.
 
 import { getPitchModel } from "./api.js";
+import { whileWorking } from "./busy.js";
 import { el, svg, isNum, pointerImagePx } from "./format.js";
 import { DragPreview, previewText } from "./linepreview.js";
 
@@ -517,7 +518,7 @@ export class EditHistory {
       else to.push({ ...item, entry });
       return true;
     });
-    return this.#turn;
+    return whileWorking("undo", this.#turn); // the page's work until it is written and drawn (busy.js)
   }
 }
 

@@ -16,6 +16,7 @@ import { LineEditor } from "./lineseditor.js";
 import { BallEditor } from "./balledit.js";
 import { ballWindow, drawView } from "./viewdrawing.js";
 import { getPitchLines } from "./api.js";
+import { working } from "./busy.js";
 import { FIX_KEY, FIX_LABEL, boxCentre, isMirrorFlagged, notes, validBox, validPoint, viewDoubtItems, viewFacts } from "./viewfacts.js";
 
 const ZOOM_PX = 150; // displayed size of the zoom inset
@@ -127,8 +128,15 @@ export class ViewPanel extends HTMLElement {
     }
     this.#imageState = "loading";
     const probe = new Image();
-    probe.onload = () => this.#imageSettled(url, "loaded");
-    probe.onerror = () => this.#imageSettled(url, "missing");
+    const arrived = working("image"); // the page's work until the frame is drawn or known missing (busy.js)
+    probe.onload = () => {
+      this.#imageSettled(url, "loaded");
+      arrived();
+    };
+    probe.onerror = () => {
+      this.#imageSettled(url, "missing");
+      arrived();
+    };
     probe.src = url;
   }
 

@@ -102,7 +102,7 @@ export class SystemPresence {
     const id = this.systemId;
     if (id === null) return;
     try {
-      const answer = await send("PUT", `/api/systems/${encodeURIComponent(id)}/presence`);
+      const answer = await send("PUT", `/api/systems/${encodeURIComponent(id)}/presence`, { background: true });
       if (id !== this.systemId) return; // moved on meanwhile
       this.heartbeatMs = Math.max(5, answer.heartbeat_seconds || DEFAULT_HEARTBEAT_S) * 1000;
       this.drawOthers(answer.others || []);
@@ -123,7 +123,7 @@ export class SystemPresence {
       const headers = this.csrf ? { [CSRF_HEADER]: this.csrf } : {};
       fetch(url, { method: "DELETE", keepalive: true, credentials: "same-origin", headers }).catch(() => {});
     } else {
-      send("DELETE", url).catch(() => {});
+      send("DELETE", url, { background: true }).catch(() => {});
     }
   }
 }

@@ -19,7 +19,8 @@ import { isMirrorFlagged } from "./viewfacts.js";
 import { renderBall, renderDoubts, renderPairs, renderStatus } from "./systemcards.js";
 import { showConflict } from "./conflict.js";
 import { HistoryPanel, describeState } from "./history.js";
-import { dispatchKey, keysHelp, renderKeys } from "./keys.js";
+import { KeyQueue, answersKey, dispatchKey, keysHelp, renderKeys } from "./keys.js";
+import { busyWith, whileWorking, working } from "./busy.js";
 import { EditHistory, lineKeys } from "./lineseditor.js";
 import { ViewDecisions } from "./viewdecisions.js";
 import { ZoomSync } from "./zoom.js";
@@ -41,10 +42,41 @@ const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 
 class SystemPage {
   system = null;
-  busy = false;
   selected = -1;
+  #busy = null; // ends the page's own work (busy.js) while it loads, decides or moves on
   sequence = new SequenceCard(this); // a frame of a sequence: its trajectory, its neighbours (sequence.js)
   writes = new ViewWrites(this); // the writes to the views, their ETags, conflicts and undo (systemwrites.js)
+
+  /** True while the page loads a system, decides on it or moves on: the buttons and keys that would start another
+   * of those wait (the key queue) or do nothing (a second click). Said on the body as the page's work (busy.js). */
+  get busy() {
+    return this.#busy !== null;
+  }
+
+  set busy(on) {
+    if (on && !this.#busy) this.#busy = working("page");
+    else if (!on && this.#busy) {
+      const end = this.#busy;
+      this.#busy = null;
+      end();
+    }
+  }
+
+  /** Whether a key can act now (the key queue's `ready`): a system is shown and taken in, and nothing the key's
+   * effect depends on is on its way (a load, a decision, a write and its redraw, an undo, the pass's place, any
+   * request of the page). A frame's image still arriving does not matter to a key, nor, to a key that moves or
+   * grows the ball box, a nudge waiting for its pause; any other key first sends that nudge (and so waits for it). */
+  keyReady(e) {
+    if (!this.system || this.busy) return false;
+    if (!NUDGE_KEYS.has(e.key)) for (const panel of $("views").children) panel.ball.flush();
+    return busyWith().every((kind) => KEY_INDIFFERENT.has(kind));
+  }
+
+  /** Act on a key now (typed, or typed ahead and kept by the key queue): the accept guard's when it is open. */
+  applyKey(e) {
+    if (this.guard.open) this.guard.key(e);
+    else dispatchKey(this.keys, e, toast); // Ctrl / Cmd chords only reach entries marked `ctrl`; a key that cannot act says why
+  }
 
   /** Let every edit of this system reach the server before deciding on it or leaving it. */
   async settle() {
@@ -102,6 +134,9 @@ class SystemPage {
     this.keys = explainKeys(this.keyTable(), this); // keyreasons.js: a key that cannot act says why
     this.keys.push(keysHelp(this.keys, "Keys of the system page", chipLegend("What the chips say")));
     renderKeys(this.keys, $("keys"));
+    // keys typed while the page is still working are kept and applied in order once it can act on them (keys.js)
+    this.keyQueue = new KeyQueue({ answers: (e) => answersKey(this.keys, e), ready: (e) => this.keyReady(e),
+      apply: (e) => this.applyKey(e), say: toast });
     document.addEventListener("keydown", (e) => this.onKey(e));
     window.addEventListener("popstate", () => this.load(idFromPath(), false));
   }
@@ -126,7 +161,7 @@ class SystemPage {
         if (back.length) toast(`Put back as you had typed it before logging in again: ${back.map((n) => DRAFT_WORDS[n] || n).join(", ")}`);
       }
       window.scrollTo(0, 0);
-      this.passReady = this.followPass(system);
+      this.passReady = whileWorking("pass", this.followPass(system)); // j / k need the pass's neighbours
     } catch (err) {
       showError(err.message);
     } finally {
@@ -140,7 +175,7 @@ class SystemPage {
     if (id === null || id === undefined || this.prefetched === id) return;
     this.prefetched = id;
     try {
-      const next = await getSystem(id, this.params);
+      const next = await getSystem(id, this.params, { background: true });
       for (const v of next.views) {
         if (v.image_url) new Image().src = v.image_url;
       }
@@ -256,12 +291,13 @@ class SystemPage {
    * fix the server could return to no one asks whom it goes to (returnto.js) and is sent again to `assignee`. */
   async review(status, comment = null, ifMatch = null, assignee = null) {
     if (!this.system || this.busy) return;
+    this.busy = true; // at once: a key typed after this one waits for the decision
     const me = await getMe().catch(() => null);
     if (me?.role === "annotator" && status !== "fixed") { // the API would answer 403: say what an annotator does instead
+      this.busy = false;
       toast(ANNOTATOR_DECIDES_NOT);
       return;
     }
-    this.busy = true;
     const sys = this.system;
     const text = comment ?? $("comment").value.trim();
     const was = sys.review || {};
@@ -272,10 +308,16 @@ class SystemPage {
     }
     try {
       await this.settle();
-      // the accept guard (guard.js): open label doubts are listed first; Esc leaves the system pending
-      if (status === "accepted" && !(await this.guard.ask(this.system))) {
-        toast(`${sys.name}: not accepted, still ${STATUS_LABEL[this.system.review?.status || "pending"].toLowerCase()}`);
-        return;
+      // the accept guard (guard.js): open label doubts are listed first; Esc leaves the system pending. Waiting for the
+      // person is not the page's work: keys typed ahead go to the guard (applyKey)
+      if (status === "accepted" && this.guard.asks(this.system)) {
+        this.busy = false;
+        const go = await this.guard.ask(this.system);
+        this.busy = true;
+        if (!go) {
+          toast(`${sys.name}: not accepted, still ${STATUS_LABEL[this.system.review?.status || "pending"].toLowerCase()}`);
+          return;
+        }
       }
       const { body: answer, etag, entry } = await postReview(sys.id, status, text, ifMatch ?? this.system.etag, assignee);
       if (entry) this.undoStack.push({ kind: "entry", systemId: sys.id, frameId: null, entry, what: `${sys.name}: ${STATUS_LABEL[status]}` });
@@ -461,9 +503,15 @@ class SystemPage {
 
   onKey(e) {
     if (isTyping(e)) return;
-    dispatchKey(this.keys, e, toast); // Ctrl / Cmd chords only reach entries marked `ctrl`; a key that cannot act says why
+    this.keyQueue.take(e);
   }
 }
+
+/** The keys that move or grow the selected view's ball box: they add to a nudge waiting for its pause. */
+const NUDGE_KEYS = new Set(["ArrowLeft", "ArrowUp", "ArrowRight", "ArrowDown", "+", "=", "-"]);
+/** The page's work a key does not wait for (busy.js): a frame's image arriving, a nudge's pause (see keyReady), the
+ * keys typed ahead themselves. */
+const KEY_INDIFFERENT = new Set(["image", "nudge", "keys"]);
 
 /** The statuses whose comment is the hand-off's note (shown in the Comments card), not a comment to decide with. */
 const HANDED_OFF = new Set(["needs_fix", "fixed"]);

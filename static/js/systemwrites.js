@@ -9,6 +9,7 @@ import { ApiError, listAudit, patchBall, mirrorFieldLines, postExclusion, putFie
 import { isNum, showError, clearError, toast } from "./format.js";
 import { isMirrorFlagged } from "./viewfacts.js";
 import { showConflict } from "./conflict.js";
+import { whileWorking } from "./busy.js";
 import { describeState } from "./history.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -74,7 +75,7 @@ export class ViewWrites {
       }
     });
     this.chains.set(frameId, save);
-    this.saves.add(save);
+    this.saves.add(whileWorking("save", save)); // the page's work until its answer is drawn (busy.js)
     save.finally(() => {
       this.saves.delete(save);
       if (this.chains.get(frameId) === save) this.chains.delete(frameId);
@@ -163,7 +164,7 @@ export class ViewWrites {
     })();
     if (item.frameId !== null) { // the view's next write waits for it and sends the ETag it answers
       this.chains.set(item.frameId, write);
-      this.saves.add(write);
+      this.saves.add(whileWorking("save", write));
       write.finally(() => {
         this.saves.delete(write);
         if (this.chains.get(item.frameId) === write) this.chains.delete(item.frameId);

@@ -4,6 +4,7 @@
 // (XMLHttpRequest's upload progress), then followed as a job by the Jobs panel (jobs.js), titled by the file's name.
 
 import { getMe, send, writeHeaders } from "./api.js";
+import { whileWorking } from "./busy.js";
 import { el, fmtBytes, showError } from "./format.js";
 import { stateQuery } from "./queuestate.js";
 
@@ -142,14 +143,14 @@ export async function mountImport(root, onQueued = () => {}) {
     bar.max = chosen.size || 1;
     bar.value = 0;
     try {
-      const job = await uploadImport(chosen, kind.value, (sent, total) => {
+      const job = await whileWorking("upload", uploadImport(chosen, kind.value, (sent, total) => {
         bar.max = total || 1;
         bar.value = sent;
         text.textContent = `uploading ${chosen.name}: ${fmtBytes(sent)} of ${fmtBytes(total)}`;
-      }, mergeMode);
+      }, mergeMode));
       onQueued(job); // the Jobs panel shows it first: the words below point at it
       text.textContent = `${chosen.name} uploaded${mergeMode ? ` (merge: ${mergeMode.replace("-", " ")})` : ""}: import job #${job.id} queued (its progress and then what it gave: in the Jobs panel, ${jobsPlace(root)})`;
-      followImport(job, chosen.name, text);
+      whileWorking("job", followImport(job, chosen.name, text)); // the page's work until the import ends (busy.js)
     } catch (err) {
       text.textContent = "";
       if (err.status === 409 && err.body && err.body.current && err.body.current.merge_modes) offerMerge(chosen, err);

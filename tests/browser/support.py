@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import itertools
 import json
+import subprocess
+import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 TESTID = "[data-testid={}]"
@@ -153,3 +156,41 @@ def log_in(page, account) -> None:
     page.fill(tid("login-name"), account.name)
     page.fill(tid("login-password"), account.password)
     page.click(tid("login-submit"))
+
+
+#: True when the page is working on nothing (``static/js/busy.js``: its body's ``data-busy`` names the work under way:
+#: a request, a system loading, a write, an undo, a key typed ahead, a nudge's pause, a frame's image).
+_IDLE = "() => document.body !== null && !document.body.hasAttribute('data-busy')"
+
+
+def settled(page, timeout_ms: float = 30_000) -> None:
+    """Wait until the page says it is working on nothing (``data-busy`` absent from its body): what a test waits for
+    after an action before the next, so that the next one meets the page as a person would after looking. Fails
+    naming the work still under way after ``timeout_ms`` (a bound for a loaded machine, not a measure of speed)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
+
+    try:
+        page.wait_for_function(_IDLE, timeout=timeout_ms)
+    except PlaywrightTimeoutError:
+        busy = page.evaluate("() => document.body?.dataset.busy ?? null")
+        raise AssertionError(f"the page still says it is busy with {busy!r} after {timeout_ms / 1000:.0f} s") from None
+
+
+def press(page, *keys: str) -> None:
+    """Press each of ``keys`` in turn, each after the page has settled from the one before (:func:`settled`), then
+    wait for it to settle again: keys typed as a person who looks at the page between them types them."""
+    for key in keys:
+        page.keyboard.press(key)
+        settled(page)
+
+
+@contextmanager
+def cpu_bound():
+    """A Python process spinning on one core until the block ends: the load under which a page's answers arrive late
+    and a person's keys arrive while it still works."""
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield spinner
+    finally:
+        spinner.kill()
+        spinner.wait()
