@@ -14,7 +14,8 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.core.paths import SHARED_DIR
 from app.db import unit as write_units
-from app.db.session import make_engine, upgrade_database
+from app.db.session import V3dSession, make_engine, upgrade_database
+from tests.recording import RECORDER, RecordedBrowser, Recorder
 
 #: The Host of Starlette's test client (``http://testserver``) is no loopback name: the apps of the tests accept
 #: it because the tests' settings name it (``app.api.hosts``; a served v3d refuses it unless V3D_ALLOWED_HOSTS
@@ -59,9 +60,9 @@ CHROMIUM_ARGS = [
 
 
 @pytest.fixture(scope="session")
-def browser() -> Iterator[object]:
-    """Headless Debian Chromium, one for the test session (each test has a context of its own); the test skips
-    (with the reason) where it is not installed."""
+def chromium() -> Iterator[object]:
+    """Headless Debian Chromium, one for the test session (each test has a context of its own, through
+    :func:`browser`); the test skips (with the reason) where it is not installed."""
     if not CHROMIUM.exists() or shutil.which(str(CHROMIUM)) is None:
         pytest.skip(f"{CHROMIUM} not found: install Debian's chromium (apt-get install -y chromium) to run browser "
                     "tests")
@@ -72,6 +73,30 @@ def browser() -> Iterator[object]:
             yield b
         finally:
             b.close()
+
+
+@pytest.fixture
+def browser(chromium, request: pytest.FixtureRequest) -> Iterator[RecordedBrowser]:
+    """The session's Chromium for one test: each context it makes records a Playwright trace, kept in
+    ``test-artifacts/traces/`` only when the test fails, whose report then also lists the pages' console errors and
+    failed requests (``tests/recording.py``)."""
+    recorder = request.node.stash.setdefault(RECORDER, Recorder(request.node.nodeid))
+    yield RecordedBrowser(chromium, recorder)
+    recorder.finish()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
+    """A browser test's outcome reaches its :class:`~tests.recording.Recorder` (which keeps its traces only when it
+    failed), and a failure's report gets the ``browser`` section: the traces' paths and what the pages said."""
+    report = yield
+    recorder = item.stash.get(RECORDER, None)
+    if recorder is not None:
+        if report.when in ("setup", "call"):
+            recorder.failed = bool(recorder.failed) or report.failed
+        if report.failed:  # a teardown's failure (the page's JavaScript errors) comes after the traces were dropped
+            report.sections.append(("browser", recorder.report(traces=report.when != "teardown")))
+    return report
 
 
 @pytest.fixture(scope="session")
@@ -171,7 +196,7 @@ def db_connection(db_engine: sa.Engine) -> Iterator[sa.Connection]:
 def joined_session(conn: sa.Connection) -> Iterator[Session]:
     """A session whose commits are savepoints of ``conn``'s transaction (SQLAlchemy's "join a session into an
     external transaction" recipe), closed at the end."""
-    session = Session(bind=conn, join_transaction_mode="create_savepoint", expire_on_commit=False)
+    session = V3dSession(bind=conn, join_transaction_mode="create_savepoint", expire_on_commit=False)
     try:
         yield session
     finally:

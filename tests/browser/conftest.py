@@ -3,8 +3,8 @@ database seeded with the demo dataset and two users (``tests/accounts.py``: ``te
 ``test-annotator``), and a headless Debian Chromium driven by Playwright. ``page`` is the admin's
 browser, logged in once per module through the login page (where the queue sends a visitor).
 
-What costs seconds is made once per test session (per pytest-xdist worker): Chromium (``browser``, of
-``tests/conftest.py``), and each seeded database
+What costs seconds is made once per test session (per pytest-xdist worker): Chromium (``chromium``, of
+``tests/conftest.py``; each test sees it as ``browser``, which records its contexts' traces), and each seeded database
 (:class:`SeededDatabases`: the demo imported and calibrated, its accounts made), which every module then copies
 into a file of its own, so that a module's edits reach no other module."""
 from __future__ import annotations
@@ -133,10 +133,10 @@ def accounts(seeded_settings, seeded_databases: SeededDatabases) -> dict[str, Ac
 
 
 @pytest.fixture(scope="module")
-def admin_state(browser, server_url, accounts) -> dict:
+def admin_state(chromium, server_url, accounts) -> dict:
     """The browser state (cookies) of the admin logged in through the page: the queue sends an
     anonymous visitor to ``/login?next=/``, and the login sends them back."""
-    context = browser.new_context(base_url=server_url)
+    context = chromium.new_context(base_url=server_url)
     try:
         p = context.new_page()
         p.goto("/")
