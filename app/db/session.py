@@ -271,24 +271,30 @@ def is_lock_timeout(exc: BaseException) -> bool:
     return any(w in text for w in ("database is locked", "database is busy", "lock timeout"))
 
 
-def make_session_factory(engine: Engine) -> sessionmaker[Session]:
-    """Sessions bound to ``engine``; objects stay readable after commit (``expire_on_commit=False``)
-    so that services can return the ORM rows they just committed, and an edit keeps the rows it read once its
-    read transaction has ended (``app.services.curation.writing``)."""
-    return sessionmaker(bind=engine, expire_on_commit=False)
+class V3dSession(Session):
+    """v3d's own ORM sessions (:func:`make_session_factory`'s): a ``Session`` whose flushes are noted, so that
+    :func:`end_reads` can refuse to commit a transaction that wrote outside a write unit. The listeners are on this
+    class alone: another library's sessions in the same process are left as they are."""
+
+
+def make_session_factory(engine: Engine) -> sessionmaker[V3dSession]:
+    """Sessions (:class:`V3dSession`) bound to ``engine``; objects stay readable after commit
+    (``expire_on_commit=False``) so that services can return the ORM rows they just committed, and an edit keeps the
+    rows it read once its read transaction has ended (``app.services.curation.writing``)."""
+    return sessionmaker(bind=engine, class_=V3dSession, expire_on_commit=False)
 
 
 #: ``Session.info`` key: the session's current transaction has flushed changes (sent INSERT, UPDATE or DELETE), set by
-#: a listener on every session's flushes and cleared when its outermost transaction ends.
+#: a listener on v3d's sessions' flushes and cleared when its outermost transaction ends.
 _FLUSHED = "v3d_flushed"
 
 
-@event.listens_for(Session, "after_flush")
+@event.listens_for(V3dSession, "after_flush")
 def _note_flush(session: Session, _context: Any) -> None:
     session.info[_FLUSHED] = True
 
 
-@event.listens_for(Session, "after_transaction_end")
+@event.listens_for(V3dSession, "after_transaction_end")
 def _forget_flush(session: Session, transaction: Any) -> None:
     if transaction.parent is None:
         session.info.pop(_FLUSHED, None)
@@ -298,7 +304,8 @@ def end_reads(session: Session) -> None:
     """End the session's read-only transaction, keeping its objects as they are, and give its connection back to
     the pool (an edit computing after its reads, ``app.services.curation.writing``). A commit, not a rollback: the
     transaction wrote nothing, a commit does not expire the objects (``expire_on_commit`` off) and psycopg forgets the
-    statements it prepared on a rollback only. Does nothing outside a transaction.
+    statements it prepared on a rollback only. Does nothing outside a transaction. The flushes checked are those
+    a :class:`V3dSession` notes (every session of v3d's).
 
     Raises:
         RuntimeError: the session holds changes not flushed yet (they would be written), or its transaction flushed
@@ -428,7 +435,7 @@ def upgrade_database(url: str | sa.URL, revision: str = "head", *, restoring: bo
     command.upgrade(alembic_config(u), revision)
     engine = make_engine(u)
     try:
-        with Session(engine) as session:
+        with V3dSession(engine) as session:
             refresh_statistics(session)
     finally:
         engine.dispose()

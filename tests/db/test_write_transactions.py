@@ -134,3 +134,20 @@ def test_end_reads_refuses_a_transaction_that_flushed_outside_a_write_unit(two_p
         game = a.get(Game, game_id)
         end_reads(a)
         assert not a.in_transaction() and game.match == "before"
+
+
+def test_only_v3ds_sessions_note_their_flushes(two_processes) -> None:
+    """The flush listeners behind :func:`end_reads` are v3d's sessions' alone: a plain SQLAlchemy ``Session`` of the
+    same process (another library's) flushes with its ``info`` left as it was."""
+    fa, _fb, game_id = two_processes
+    with Session(fa.kw["bind"]) as other:
+        other.get(Game, game_id).match = "another library's flush"
+        other.flush()
+        assert other.info == {}
+        other.rollback()
+    with fa() as a:
+        a.get(Game, game_id).match = "v3d's flush"
+        a.flush()
+        assert a.info == {"v3d_flushed": True}
+        a.rollback()
+        assert a.info == {}

@@ -31,13 +31,13 @@ from typing import Any, Optional
 import orjson
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
-from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
 from app.core.errors import ConflictError, InvalidInputError
 from app.core.progress import Progress
 from app.db.session import (
     RESTORING_TABLE,
+    V3dSession,
     alembic_config,
     make_engine,
     refresh_statistics,
@@ -146,7 +146,7 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
                 report.missing_roots = _name_local_roots(engine, manifest, settings)
             upgrade_database(settings.database_url, "head", restoring=True)
             _advance_sequences(engine)
-            with Session(engine) as session:
+            with V3dSession(engine) as session:
                 refresh_statistics(session)
             _unmark(engine)
         finally:
