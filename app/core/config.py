@@ -362,6 +362,10 @@ class Settings(BaseSettings):
         "AWS_SECRET_ACCESS_KEY, AWS_DEFAULT_REGION, and AWS_ENDPOINT_URL for an S3-compatible store; the bucket "
         "must exist). Nodes that share it and the database share everything; the jobs folder is then only each "
         "node's scratch. None: the jobs folder itself (file://<jobs dir>, one machine) (V3D_STORAGE_URL).")
+    store_timeout_s: float = Field(
+        5.0, gt=0, le=300, description="How long a request to an S3 store waits for its answer (s; to connect, at most "
+        "3 s); a request is sent twice at most, so a store that never answers fails a request, answered 503, within "
+        "about twice this (V3D_STORE_TIMEOUT_S).")
     export_keep_hours: float = Field(
         24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
         "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "

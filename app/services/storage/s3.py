@@ -34,17 +34,18 @@ _MISSING = ("404", "NoSuchKey", "NotFound")
 #: What S3 answers to keys that do not sign as the server expects: a wrong secret, an unknown key id, a clock off.
 _REFUSED = ("SignatureDoesNotMatch", "InvalidAccessKeyId", "AccessDenied", "403", "RequestTimeTooSkewed",
             "InvalidToken", "ExpiredToken")
-#: How long a request waits to connect to the store and for each answer (s), and how many times it is sent in all
-#: (botocore's ``total_max_attempts``: its ``max_attempts`` counts the retries only):
-#: a store that accepts connections and never answers fails a request in about ``READ_TIMEOUT_S * ATTEMPTS`` seconds,
-#: answered 503 (``app.api.errors``), never holding a worker for minutes (botocore's ``connect_timeout``,
-#: ``read_timeout`` and ``retries``; its defaults are 60 s each and 5 attempts in the standard mode).
+#: How long a request waits to connect to the store and for each answer by default (s: ``V3D_STORE_TIMEOUT_S``, the
+#: connection at most :data:`CONNECT_TIMEOUT_S`), and how many times it is sent in all (botocore's
+#: ``total_max_attempts``: its ``max_attempts`` counts the retries only): a store that accepts connections and never
+#: answers fails a request in about ``timeout * ATTEMPTS`` seconds, answered 503 (``app.api.errors``), never holding a
+#: worker for minutes (botocore's ``connect_timeout``, ``read_timeout`` and ``retries``; its defaults are 60 s each and
+#: 5 attempts in the standard mode).
 CONNECT_TIMEOUT_S = 3.0
 READ_TIMEOUT_S = 5.0
 ATTEMPTS = 2
 
 
-def _raise(exc: Exception, key: str, url: str = "S3") -> NoReturn:
+def _raise(exc: Exception, key: str, url: str = "S3", timeout_s: float = READ_TIMEOUT_S) -> NoReturn:
     """A boto3 error as :class:`FileNotFoundError` (no such key) or :class:`StorageError` in words (anything else:
     the store refused v3d's keys, could not be reached, did not answer in time, or failed)."""
     from boto3.exceptions import S3UploadFailedError
@@ -60,7 +61,7 @@ def _raise(exc: Exception, key: str, url: str = "S3") -> NoReturn:
     elif code in _REFUSED:
         said = f"it refused v3d's credentials ({code}: check AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY)"
     elif isinstance(exc, (ConnectTimeoutError, ReadTimeoutError)):
-        said = f"it did not answer within {READ_TIMEOUT_S:g} s ({ATTEMPTS} tries)"
+        said = f"it did not answer within {timeout_s:g} s ({ATTEMPTS} tries)"
     elif isinstance(exc, EndpointConnectionError):
         said = "it cannot be reached"
     else:
@@ -78,9 +79,11 @@ def _errors() -> tuple[type[Exception], ...]:
 class RangeReader(io.RawIOBase):
     """A stored object read as a seekable file, each read one ranged GET (wrap it in ``io.BufferedReader``)."""
 
-    def __init__(self, client: "S3Client", bucket: str, name: str, size: int, key: str, tail: bytes = b"") -> None:
+    def __init__(self, client: "S3Client", bucket: str, name: str, size: int, key: str, tail: bytes = b"",
+                 timeout_s: float = READ_TIMEOUT_S) -> None:
         super().__init__()
         self._client, self._bucket, self._name, self._size, self._key = client, bucket, name, size, key
+        self._timeout_s = timeout_s
         self._pos = 0
         #: The file's last bytes, read when it was opened (``S3Storage.open``).
         self._tail, self._tail_start = tail, size - len(tail)
@@ -115,7 +118,7 @@ class RangeReader(io.RawIOBase):
                                            Range=f"bytes={self._pos}-{end - 1}")["Body"]
             data = body.read()
         except _errors() as exc:
-            _raise(exc, self._key, f"s3://{self._bucket}")
+            _raise(exc, self._key, f"s3://{self._bucket}", self._timeout_s)
         n = len(data)
         view[:n] = data
         self._pos += n
@@ -125,10 +128,13 @@ class RangeReader(io.RawIOBase):
 class S3Storage(Storage):
     """``s3://bucket/prefix`` through boto3 (see the module docstring)."""
 
-    def __init__(self, bucket: str, prefix: str = "", client: Optional["S3Client"] = None) -> None:
+    def __init__(self, bucket: str, prefix: str = "", client: Optional["S3Client"] = None,
+                 timeout_s: float = READ_TIMEOUT_S) -> None:
         self.bucket, self.prefix = bucket, prefix.strip("/")
         self.url = f"s3://{bucket}/{self.prefix}" if self.prefix else f"s3://{bucket}"
-        self.client = client if client is not None else default_client()
+        #: how long each request waits for an answer (s), twice at most (:data:`ATTEMPTS`)
+        self.timeout_s = timeout_s
+        self.client = client if client is not None else default_client(timeout_s)
 
     def _name(self, key: str) -> str:
         self.check_fits(key)
@@ -171,14 +177,14 @@ class S3Storage(Storage):
         try:
             self.client.upload_file(str(source), self.bucket, self._name(key), Config=self._transfer())
         except _errors() as exc:
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
 
     def put_stream(self, key: str, stream: BinaryIO) -> None:
         """boto3's managed upload of the stream (multipart above :data:`MULTIPART_BYTES`)."""
         try:
             self.client.upload_fileobj(stream, self.bucket, self._name(key), Config=self._transfer())
         except _errors() as exc:
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
 
     def get_file(self, key: str, target: Path) -> Path:
         """boto3's managed download into ``target`` (written beside it, renamed when complete)."""
@@ -189,7 +195,7 @@ class S3Storage(Storage):
             os.replace(part, target)
         except _errors() as exc:
             part.unlink(missing_ok=True)
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
         return target
 
     def open(self, key: str) -> BinaryIO:
@@ -201,11 +207,11 @@ class S3Storage(Storage):
             tail = answer["Body"].read()
         except _errors() as exc:
             if str((getattr(exc, "response", None) or {}).get("Error", {}).get("Code", "")) != "InvalidRange":
-                _raise(exc, key, self.url)
+                _raise(exc, key, self.url, self.timeout_s)
             tail = b""  # an empty object has no last bytes
         content_range = str(answer.get("ContentRange", "")) if tail else ""
         size = int(content_range.rpartition("/")[2]) if content_range else len(tail)
-        raw = RangeReader(self.client, self.bucket, name, size, key, tail)
+        raw = RangeReader(self.client, self.bucket, name, size, key, tail, self.timeout_s)
         return io.BufferedReader(raw, buffer_size=READ_BUFFER_BYTES)
 
     def stat(self, key: str) -> StoredObject:
@@ -213,7 +219,7 @@ class S3Storage(Storage):
         try:
             head = self.client.head_object(Bucket=self.bucket, Key=self._name(key))
         except _errors() as exc:
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
         return StoredObject(key, int(head["ContentLength"]), head["LastModified"].timestamp(),
                             str(head.get("ETag", "")).strip('"'))
 
@@ -226,14 +232,14 @@ class S3Storage(Storage):
                     yield StoredObject(self._key(obj["Key"]), int(obj["Size"]), obj["LastModified"].timestamp(),
                                        str(obj.get("ETag", "")).strip('"'))
         except _errors() as exc:
-            _raise(exc, prefix, self.url)
+            _raise(exc, prefix, self.url, self.timeout_s)
 
     def delete(self, key: str) -> None:
         """Remove the object (S3 answers a missing one as removed)."""
         try:
             self.client.delete_object(Bucket=self.bucket, Key=self._name(key))
         except _errors() as exc:
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
 
     def check_reachable(self) -> None:
         """A listing of at most one key under the prefix (what every node needs: the bucket, read and list)."""
@@ -241,7 +247,7 @@ class S3Storage(Storage):
             self.client.list_objects_v2(Bucket=self.bucket, Prefix=f"{self.prefix}/" if self.prefix else "",
                                         MaxKeys=1)
         except _errors() as exc:
-            _raise(exc, self.prefix or "/", self.url)
+            _raise(exc, self.prefix or "/", self.url, self.timeout_s)
 
     def url_for(self, key: str, expires_s: int = 300) -> Optional[str]:
         """A presigned GET of the object, valid ``expires_s`` seconds."""
@@ -249,18 +255,19 @@ class S3Storage(Storage):
             return str(self.client.generate_presigned_url(
                 "get_object", Params={"Bucket": self.bucket, "Key": self._name(key)}, ExpiresIn=expires_s))
         except _errors() as exc:
-            _raise(exc, key, self.url)
+            _raise(exc, key, self.url, self.timeout_s)
 
 
-def default_client() -> "S3Client":
+def default_client(timeout_s: float = READ_TIMEOUT_S) -> "S3Client":
     """boto3's S3 client configured from the standard AWS variables; path-style requests when
-    ``AWS_ENDPOINT_URL`` names an S3-compatible store (virtual-host names need DNS such stores seldom have); a few
-    seconds to connect and to answer, two tries (:data:`READ_TIMEOUT_S`, :data:`ATTEMPTS`)."""
+    ``AWS_ENDPOINT_URL`` names an S3-compatible store (virtual-host names need DNS such stores seldom have);
+    ``timeout_s`` seconds for each answer (and at most :data:`CONNECT_TIMEOUT_S` to connect), two tries
+    (:data:`ATTEMPTS`)."""
     import boto3
     from botocore.config import Config
 
     path_style = bool(os.environ.get("AWS_ENDPOINT_URL_S3") or os.environ.get("AWS_ENDPOINT_URL"))
     config = Config(s3={"addressing_style": "path" if path_style else "auto"},
-                    retries={"mode": "standard", "total_max_attempts": ATTEMPTS}, connect_timeout=CONNECT_TIMEOUT_S,
-                    read_timeout=READ_TIMEOUT_S)
+                    retries={"mode": "standard", "total_max_attempts": ATTEMPTS},
+                    connect_timeout=min(CONNECT_TIMEOUT_S, timeout_s), read_timeout=timeout_s)
     return boto3.session.Session().client("s3", config=config)
