@@ -149,6 +149,64 @@ def fresh_postgresql_database(server_url: str) -> Iterator[str]:
         admin.dispose()
 
 
+#: A SQLite file migrated to head once per test process (:func:`migrate_new_database`), in a folder of its own.
+_MIGRATED_SQLITE: list[Path] = []
+
+
+def migrate_new_database(url: str) -> None:
+    """Bring the database ``url`` to the migrations' head, as ``app.db.session.upgrade_database`` does. A SQLite file
+    that does not exist yet is made as a copy of one migrated once per test process (replaying the migrations costs
+    about 0.6 s of CPU per database, and the suite makes a few hundred), its session key then drawn anew as the
+    migration that made it draws one, so that no two databases share it; any other database is migrated."""
+    import atexit
+    import tempfile
+
+    parsed = sa.make_url(url)
+    path = Path(parsed.database or "")
+    if parsed.get_backend_name() != "sqlite" or not parsed.database or parsed.database == ":memory:" \
+            or path.exists():
+        upgrade_database(url)
+        return
+    if not _MIGRATED_SQLITE:
+        folder = Path(tempfile.mkdtemp(prefix="v3d-migrated-"))
+        atexit.register(shutil.rmtree, folder, True)
+        upgrade_database(f"sqlite:///{folder / 'head.sqlite3'}")
+        _MIGRATED_SQLITE.append(folder / "head.sqlite3")
+    copy_sqlite(_MIGRATED_SQLITE[0], path)
+
+
+def copy_sqlite(source: Path, target: Path) -> str:
+    """A copy at ``target`` of the SQLite database ``source`` (its write-ahead log included: SQLite's backup API),
+    with a session key of its own, drawn as the migration that made the key draws one; answers its URL."""
+    import secrets
+    import sqlite3
+
+    target.parent.mkdir(parents=True, exist_ok=True)
+    original, copy = sqlite3.connect(source), sqlite3.connect(target)
+    try:
+        original.backup(copy)
+        copy.execute("UPDATE server_secrets SET value = ? WHERE name = 'session'", (secrets.token_urlsafe(48),))
+        copy.commit()
+    finally:
+        original.close()
+        copy.close()
+    return f"sqlite:///{target}"
+
+
+@pytest.fixture(scope="session")
+def demo_template(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A migrated SQLite file holding the demo as ``v3d serve --demo`` imports it (no account), made once per test
+    process: the tests whose subject is not the demo's import start from a copy of it (:func:`copy_sqlite`; its
+    frames name the dataset in the template's folder), not from an import of their own (about 6 s of CPU each)."""
+    from app.cli.serve import load_demo_if_empty
+
+    path = tmp_path_factory.mktemp("demo-template") / "v3d.sqlite3"
+    migrate_new_database(f"sqlite:///{path}")
+    assert load_demo_if_empty(Settings(_env_file=None, database_url=f"sqlite:///{path}",
+                                       calibration_workers=1)).startswith("demo: imported")
+    return path
+
+
 @pytest.fixture(scope="session")
 def db_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """URL of a database built by the Alembic migrations, once per test session: a SQLite file, or,

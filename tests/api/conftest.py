@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.api.auth import Principal, current_principal
 from app.core.config import Settings
-from app.db.session import make_engine
+from app.db.session import V3dSession, make_engine
 from app.main import create_app
 from tests.accounts import Account, as_session, make_accounts
 from tests.conftest import create_test_database, joined_session
@@ -95,7 +95,7 @@ def db_session(request: pytest.FixtureRequest, served_engine: sa.Engine | None) 
         with joined_session(request.getfixturevalue("db_connection")) as joined:
             yield joined
         return
-    session = Session(served_engine, expire_on_commit=False)
+    session = V3dSession(served_engine, expire_on_commit=False)
     try:
         yield session
     finally:
@@ -118,7 +118,7 @@ def app(request: pytest.FixtureRequest, db_settings: Settings, served_engine: sa
         return create_app(db_settings.model_copy(update={"job_heartbeat_seconds": 3600.0, "database_url": url}))
     application = create_app(db_settings.model_copy(update={"job_heartbeat_seconds": 3600.0}))
     application.state.session_factory = sessionmaker(
-        bind=request.getfixturevalue("db_connection"), join_transaction_mode="create_savepoint",
+        bind=request.getfixturevalue("db_connection"), class_=V3dSession, join_transaction_mode="create_savepoint",
         expire_on_commit=False)
     return application
 

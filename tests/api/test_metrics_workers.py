@@ -14,8 +14,8 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
 from app.core.paths import PROJECT_ROOT
-from app.db.session import upgrade_database
 from tests.accounts import make_accounts
+from tests.conftest import migrate_new_database
 from tests.live_server import free_port
 
 pytestmark = pytest.mark.processes
@@ -31,7 +31,7 @@ def _health_count(text: str) -> float:
 
 def test_two_workers_count_into_one_scrape(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'metrics.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     admin = make_accounts(url, login=False, roles=("admin",))["admin"]
     port = free_port()
     env = {k: v for k, v in os.environ.items() if k != "PROMETHEUS_MULTIPROC_DIR"}

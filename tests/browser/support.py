@@ -11,6 +11,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from tests.conftest import migrate_new_database
+
 TESTID = "[data-testid={}]"
 #: The pages' module of words, written from app/services/wording/words.py and the doubts' contract.
 WORDS_JS = Path(__file__).resolve().parents[2] / "static" / "js" / "words.js"
@@ -27,10 +29,10 @@ def import_into_new_database(settings, *datasets, then=None) -> None:
     """Migrate ``settings.database_url`` (a new database) and import each SoccerNet-v3 tree of ``datasets``
     through the importer, as ``v3d import soccernet-v3`` does; ``then(session)``, when given, runs after them
     in the same session (another import, a user). Each import commits on its own."""
-    from app.db.session import make_engine, make_session_factory, upgrade_database
+    from app.db.session import make_engine, make_session_factory
     from app.services.transfer.importing import import_soccernet_v3
 
-    upgrade_database(settings.database_url)
+    migrate_new_database(settings.database_url)
     engine = make_engine(settings.database_url)
     try:
         with make_session_factory(engine)() as session:

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.browser.support import api_json, api_write, log_in, tid, wait_for_job
+from tests.conftest import migrate_new_database
 
 pytestmark = pytest.mark.browser
 
@@ -48,14 +49,13 @@ def seeded_settings(tmp_path_factory: pytest.TempPathFactory):
     run by this process (``run_job_here``), finished before the server starts."""
     from app.cli.datasets import run_job_here
     from app.core.config import Settings
-    from app.db.session import upgrade_database
     from app.demo import generate_demo_dataset
     from app.services.jobs.work import import_params
 
     root = tmp_path_factory.mktemp("walk2")
     settings = Settings(database_url=f"sqlite:///{root / 'walk2.sqlite3'}", calibration_workers=1,
                         data_root=tmp_path_factory.getbasetemp())
-    upgrade_database(settings.database_url)
+    migrate_new_database(settings.database_url)
     dataset = generate_demo_dataset(root / "demo")
     for path in (dataset, labels_only_tree(dataset, root / "labels-only")):
         job_id, result = run_job_here(settings, "import", import_params("soccernet-v3", path))

@@ -14,8 +14,9 @@ import app.cli.releases  # noqa: F401  # registers its commands
 from app.cli._root import cli
 from app.core.config import Settings
 from app.db.models import ReviewDecision, ReviewStatus, System
-from app.db.session import make_engine, upgrade_database
+from app.db.session import make_engine
 from tests.api.factories import make_game, make_system
+from tests.conftest import migrate_new_database
 
 
 def _decide(session: Session, system_id: int, status: ReviewStatus) -> None:
@@ -32,7 +33,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 def test_release_commands(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'v3d.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(database_url=url, calibration_workers=1)
     with Session(make_engine(url)) as session:
         game = make_game(session)

@@ -18,7 +18,8 @@ from app.cli._root import cli
 from app.core.config import get_settings
 from app.core.metrics import MULTIPROC_ENV
 from app.db.models import Game, User
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
+from tests.conftest import copy_sqlite, migrate_new_database
 
 
 @pytest.fixture
@@ -32,29 +33,11 @@ def database(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     get_settings.cache_clear()
 
 
-@pytest.fixture(scope="session")
-def demo_template(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A migrated SQLite file holding the demo as ``v3d serve --demo`` imports it (no account), made once: the
-    tests whose subject is not the demo's import start from a copy of it (:func:`demo_database`)."""
-    from app.cli.serve import load_demo_if_empty
-    from app.core.config import Settings
-
-    path = tmp_path_factory.mktemp("serve-demo") / "v3d.sqlite3"
-    upgrade_database(f"sqlite:///{path}")
-    assert load_demo_if_empty(Settings(_env_file=None, database_url=f"sqlite:///{path}",
-                                       calibration_workers=1)).startswith("demo: imported")
-    return path
-
-
 @pytest.fixture
 def demo_database(database: str, demo_template: Path) -> str:
-    """:func:`database`, holding a copy of the demo already imported (its dataset stays in the template's folder)."""
-    import sqlite3
-
-    target = Path(sa.make_url(database).database or "")
-    target.parent.mkdir(parents=True)
-    with sqlite3.connect(demo_template) as source, sqlite3.connect(target) as copy:
-        source.backup(copy)
+    """:func:`database`, holding a copy of the demo already imported (``tests.conftest.demo_template``: its dataset
+    stays in the template's folder)."""
+    copy_sqlite(demo_template, Path(sa.make_url(database).database or ""))
     return database
 
 
@@ -135,7 +118,7 @@ def test_an_enabled_demo_account_keeps_the_server_off_the_network(demo_database:
 
 
 def test_demo_is_not_loaded_into_a_database_with_games(database: str, served: list, tmp_path: Path) -> None:
-    upgrade_database(database)
+    migrate_new_database(database)
     engine = make_engine(database)
     with make_session_factory(engine)() as session:
         session.add(Game(league="l", season="s", match="m", source_path="/x"))

@@ -14,8 +14,8 @@ import httpx
 import pytest
 
 from app.core.config import Settings
-from app.db.session import upgrade_database
 from tests.accounts import Account, make_accounts
+from tests.conftest import copy_sqlite
 from tests.live_server import serve_app
 
 
@@ -37,25 +37,22 @@ class ServedDemo:
 
 
 @contextmanager
-def serve_demo(root: Path, **settings: Any) -> Iterator[ServedDemo]:
-    """The demo as ``v3d serve --demo`` loads it, with one account per role, served from ``root`` until the block
-    ends (``settings``: more of the server's settings)."""
-    from app.cli.serve import load_demo_if_empty
+def serve_demo(root: Path, demo_template: Path, **settings: Any) -> Iterator[ServedDemo]:
+    """The demo as ``v3d serve --demo`` loads it (a copy of ``tests.conftest.demo_template``), with one account per
+    role, served from ``root`` until the block ends (``settings``: more of the server's settings)."""
     from app.main import create_app
 
-    chosen = Settings(_env_file=None, database_url=f"sqlite:///{root / 'v3d.sqlite3'}", calibration_workers=1,
-                      jobs_dir=root / "jobs", job_runner=True, **settings)
-    upgrade_database(chosen.database_url)
-    assert load_demo_if_empty(chosen).startswith("demo: imported")
+    chosen = Settings(_env_file=None, database_url=copy_sqlite(demo_template, root / "v3d.sqlite3"),
+                      calibration_workers=1, jobs_dir=root / "jobs", job_runner=True, **settings)
     accounts = make_accounts(chosen.database_url, login=False)
     with serve_app(create_app(chosen)) as url:
         yield ServedDemo(url, accounts, chosen)
 
 
 @pytest.fixture(scope="module")
-def served_demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedDemo]:
-    """The module's served demo (made once: the demo's import takes most of its time)."""
-    with serve_demo(tmp_path_factory.mktemp("served-demo")) as served:
+def served_demo(tmp_path_factory: pytest.TempPathFactory, demo_template: Path) -> Iterator[ServedDemo]:
+    """The module's served demo (made once per module)."""
+    with serve_demo(tmp_path_factory.mktemp("served-demo"), demo_template) as served:
         yield served
 
 

@@ -34,9 +34,9 @@ from v3d_client.models import SystemState
 
 
 @pytest.fixture(scope="module")
-def served_demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedDemo]:
+def served_demo(tmp_path_factory: pytest.TempPathFactory, demo_template: Path) -> Iterator[ServedDemo]:
     """This module's served demo: a write waits at most 0.5 s for the database's lock (then 503, Retry-After 2 s)."""
-    with serve_demo(tmp_path_factory.mktemp("client"), write_lock_timeout_s=0.5) as served:
+    with serve_demo(tmp_path_factory.mktemp("client"), demo_template, write_lock_timeout_s=0.5) as served:
         yield served
 
 

@@ -13,7 +13,8 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from app.db.models import Game
-from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
+from app.db.session import begin_write, make_engine, make_session_factory
+from tests.conftest import migrate_new_database
 
 pytestmark = pytest.mark.engine
 
@@ -23,7 +24,7 @@ def two_processes(tmp_path: Path):
     """Two engines (as two server processes would have) on one migrated SQLite file holding one game,
     the second with a 0.3 s busy timeout; yields ``(factory_a, factory_b, game_id)``."""
     url = f"sqlite:///{tmp_path / 'shared.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     a = make_engine(url)
     b = make_engine(url, connect_args={"timeout": 0.3})
     with make_session_factory(a)() as s:

@@ -22,8 +22,8 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 
-from app.db.session import make_engine, upgrade_database
-from tests.conftest import sizes
+from app.db.session import make_engine
+from tests.conftest import migrate_new_database, sizes
 
 pytestmark = pytest.mark.processes
 
@@ -45,7 +45,7 @@ def source(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
     """A migrated deployment with one finished export job whose file (:data:`OBJECT_MB` MB) is in its store."""
     folder = tmp_path_factory.mktemp("source")
     url = f"sqlite:///{folder / 'v3d.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     engine = make_engine(url)
     with engine.begin() as conn:
         conn.execute(sa.text("INSERT INTO jobs (id, kind, params, state, done, total, attempts, created_at, result) "

@@ -30,8 +30,8 @@ import pytest
 import sqlalchemy as sa
 
 from app.db.models import BallLabel, Base, Calibration, Doubt, Frame, Game, Job, JobState, System, Triangulation
-from app.db.session import make_engine, upgrade_database
-from tests.conftest import sizes
+from app.db.session import make_engine
+from tests.conftest import migrate_new_database, sizes
 from tests.services.datasets import DEV_GAME, write_v3_game
 
 V3D = str(Path(sys.executable).with_name("v3d"))
@@ -139,7 +139,7 @@ def _stored_games(engine: sa.Engine) -> int:
 def _kill_mid_import(url: str, tree: Tree) -> None:
     """Start ``v3d import`` and SIGKILL its process group (its calibration processes included) once the
     database holds a committed game and at least two are still to come."""
-    upgrade_database(url)
+    migrate_new_database(url)
     log = open(os.devnull, "w")
     proc = subprocess.Popen([V3D, "import", "soccernet-v3", str(tree.root)], env=_env(url), start_new_session=True,
                             stdout=log, stderr=log)

@@ -8,7 +8,8 @@ import pytest
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
+from tests.conftest import migrate_new_database
 
 from .datasets import write_v3_game
 
@@ -28,7 +29,7 @@ def fresh_session_factory(tmp_path: Path) -> Iterator[Callable[[str], Session]]:
 
     def make(name: str) -> Session:
         url = f"sqlite:///{tmp_path / (name + '.sqlite3')}"
-        upgrade_database(url)
+        migrate_new_database(url)
         engine = make_engine(url)
         engines.append(engine)
         return make_session_factory(engine)()

@@ -16,14 +16,14 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Frame
-from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
+from app.db.session import begin_write, make_engine, make_session_factory
 from app.main import create_app
 from app.services.accounts.users import create_user
 from app.services.curation import writing
 from app.services.curation.writing import lock_system
 from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
-from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
+from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database, migrate_new_database
 
 #: The edit routes run on a real engine, as served (tests/api/conftest.py).
 pytestmark = [pytest.mark.served, pytest.mark.engine]
@@ -74,7 +74,7 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
     with contextlib.ExitStack() as stack:
         url = (f"sqlite:///{tmp_path / 'served.sqlite3'}" if request.param == "sqlite"
                else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL)))
-        upgrade_database(url)
+        migrate_new_database(url)
         settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
                             write_lock_timeout_s=0.5, data_root=tmp_path)
         other = make_engine(url)

@@ -27,6 +27,7 @@ from app.services.backup.archive import MANIFEST, BrokenArchive, verify_archive
 from app.services.images.serving import frame_image
 from app.services.storage.datasets import DatasetFiles
 from app.services.transfer.importing import import_soccernet_v3
+from tests.conftest import migrate_new_database
 from tests.services.datasets import write_v3_game
 
 PASSWORD = "a long enough password"
@@ -82,7 +83,7 @@ def source(shared_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[s
     tree = base / "v3"
     write_v3_game(shared_dir, tree)
     url = env["V3D_DATABASE_URL"]
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(_env_file=None, database_url=url, storage_url=env["V3D_STORAGE_URL"],
                         jobs_dir=Path(env["V3D_JOBS_DIR"]), calibration_workers=1)
     engine = make_engine(url)
@@ -179,7 +180,7 @@ def test_a_flipped_byte_is_refused_naming_its_member_and_nothing_is_written(arch
 def test_a_target_holding_data_is_refused_untouched_unless_replaced(source, archive, tmp_path, monkeypatch):
     target = deployment(tmp_path / "target")
     url = target["V3D_DATABASE_URL"]
-    upgrade_database(url)
+    migrate_new_database(url)
     engine = make_engine(url)
     with Session(engine) as session:
         create_user(session, "kept", "reviewer", PASSWORD)
@@ -195,7 +196,7 @@ def test_a_target_holding_data_is_refused_untouched_unless_replaced(source, arch
 
 def test_an_only_migrated_database_counts_as_empty(archive, tmp_path, monkeypatch):
     target = deployment(tmp_path / "target")
-    upgrade_database(target["V3D_DATABASE_URL"])  # holds the session key the migrations make, nothing else
+    migrate_new_database(target["V3D_DATABASE_URL"])  # holds the session key the migrations make, nothing else
     result = invoke(target, monkeypatch, "restore", str(archive))
     assert result.exit_code == 0, result.output
 
@@ -210,7 +211,7 @@ def test_a_restore_cut_short_refuses_to_serve_and_is_finished_by_running_it_agai
     assert result.exit_code == 1 and "refuses to serve until `v3d restore" in result.output, result.output
     url = target["V3D_DATABASE_URL"]
     with pytest.raises(RestoreUnfinished, match="unfinished restore of .*v3d-backup.zip.*v3d restore"):
-        upgrade_database(url)
+        migrate_new_database(url)
     served = invoke(target, monkeypatch, "serve")
     assert served.exit_code == 2 and "unfinished restore" in served.output, served.output
     users = invoke(target, monkeypatch, "users", "list")
@@ -218,7 +219,7 @@ def test_a_restore_cut_short_refuses_to_serve_and_is_finished_by_running_it_agai
     (store / "restored").unlink()
     result = invoke(target, monkeypatch, "restore", str(archive))
     assert result.exit_code == 0, result.output
-    upgrade_database(url)  # whole: served again
+    migrate_new_database(url)  # whole: served again
     before, after = rows(source["url"]), rows(url)
     for table in (before, after):
         for frame in table["frames"]:
@@ -229,7 +230,7 @@ def test_a_restore_cut_short_refuses_to_serve_and_is_finished_by_running_it_agai
 def test_a_key_the_target_store_cannot_hold_is_refused_before_anything_is_written(source, tmp_path, monkeypatch):
     env = deployment(tmp_path / "source")
     long_name = "é" * 130  # 260 bytes of UTF-8: more than a file name holds
-    upgrade_database(env["V3D_DATABASE_URL"])
+    migrate_new_database(env["V3D_DATABASE_URL"])
     engine = make_engine(env["V3D_DATABASE_URL"])
     with engine.begin() as conn:
         conn.execute(sa.text("INSERT INTO jobs (id, kind, params, state, done, total, attempts, created_at, result) "

@@ -20,12 +20,13 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Frame
-from app.db.session import make_engine, upgrade_database
+from app.db.session import make_engine
 from app.main import create_app
 from app.services.accounts.users import create_user
 from app.services.backup.archive import MANIFEST
 from app.services.storage import _s3
 from app.services.transfer.importing import import_soccernet_v3
+from tests.conftest import migrate_new_database
 from tests.seaweed import Seaweed, seaweed_for_tests
 from tests.services.backup.test_backup import PASSWORD, deployment, invoke
 from tests.services.datasets import write_v3_game
@@ -63,7 +64,7 @@ def work(env: dict[str, str], shared_dir: Path, tree: Path) -> dict[str, Any]:
     annotator, decisions (one needs fix: a hand-off), a comment, a release and its SoccerNet-v3D export job."""
     write_v3_game(shared_dir, tree)
     settings = settings_of(env)
-    upgrade_database(settings.database_url)
+    migrate_new_database(settings.database_url)
     engine = make_engine(settings.database_url)
     with Session(engine) as session:
         import_soccernet_v3(session, tree, settings, actor="ana")
@@ -159,7 +160,7 @@ def test_sqlite_and_a_folder_to_postgresql_and_s3_and_back(shared_dir, tmp_path,
 
 def test_a_key_longer_than_s3_holds_is_refused_before_anything_is_written(tmp_path, monkeypatch, seaweed):
     source = deployment(tmp_path / "source")
-    upgrade_database(source["V3D_DATABASE_URL"])
+    migrate_new_database(source["V3D_DATABASE_URL"])
     engine = make_engine(source["V3D_DATABASE_URL"])
     long_key = "exports/" + "/".join(["k" * 250] * 4) + ".zip"  # 1,015 bytes: a folder holds it
     with engine.begin() as conn:

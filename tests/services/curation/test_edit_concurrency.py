@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Frame, ReviewStatus, System
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.services.curation import editing, writing
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import replace_field_lines, update_ball_label
@@ -24,7 +24,7 @@ from app.services.curation.writing import EditContext
 from app.services.derivation.recompute import load_for_recompute, recompute_system
 from benchmarks.edit_lock import dense_lines
 from tests.api.factories import Scene, make_game, make_system
-from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
+from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database, migrate_new_database
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
@@ -36,7 +36,7 @@ def database(request: pytest.FixtureRequest,
     with contextlib.ExitStack() as stack:
         url = (f"sqlite:///{tmp_path / 'edits.sqlite3'}" if request.param == "sqlite"
                else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL)))
-        upgrade_database(url)
+        migrate_new_database(url)
         settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
                             write_lock_timeout_s=1.0)
         engine = make_engine(url, write_lock_timeout_s=settings.write_lock_timeout_s)

@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db import scope
 from app.db.models import AuditEntry, Frame, ReviewStatus, System
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.services.curation import writing
 from app.services.curation.decisions import decide_calibration, decide_review
 from app.services.curation.editing import (
@@ -38,6 +38,7 @@ from app.services.curation.reverting import revert_entry, undo_entry
 from app.services.curation.writing import EditContext
 from app.services.derivation.recompute import recompute_all_systems
 from tests.api.factories import Scene, make_game, make_system
+from tests.conftest import migrate_new_database
 
 _TABLES = re.compile(r'\b(?:FROM|JOIN)\s+"?(\w+)"?', re.IGNORECASE)
 _WRITE = re.compile(r'^\s*(INSERT INTO|UPDATE|DELETE FROM)\s+"?(\w+)"?(.*)$', re.IGNORECASE | re.DOTALL)
@@ -63,7 +64,7 @@ class Recorder:
 @pytest.fixture
 def database(tmp_path: Path) -> Iterator[tuple[Callable[[], Session], Settings, Scene, Recorder]]:
     url = f"sqlite:///{tmp_path / 'scope.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False)
     engine = make_engine(url)
     factory = make_session_factory(engine)
@@ -198,7 +199,7 @@ def test_an_import_bumps_the_versions_of_what_it_writes(tmp_path: Path, v3_tree:
     from app.services.transfer.importing import import_soccernet_v3
 
     url = f"sqlite:///{tmp_path / 'import.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False)
     engine = make_engine(url)
     try:

@@ -16,19 +16,20 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Frame, ReviewStatus
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.services.curation import writing
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import update_ball_label
 from app.services.curation.writing import EditContext, EditSlots
 from tests.api.factories import Scene, make_game, make_system
+from tests.conftest import migrate_new_database
 
 
 @pytest.fixture
 def database(tmp_path: Path) -> Iterator[tuple[Engine, Settings, Scene, Scene]]:
     """A migrated SQLite file with one game of two three-view systems (exact cameras, every view labelled)."""
     url = f"sqlite:///{tmp_path / 'slots.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
                         write_lock_timeout_s=5.0)
     engine = make_engine(url, write_lock_timeout_s=settings.write_lock_timeout_s)

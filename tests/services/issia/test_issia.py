@@ -34,6 +34,7 @@ from app.services.issia import sequences as issia_service
 from app.services.issia.cameras import STATIC_CAMERA_REFUSALS
 from app.services.issia.export import export_issia3d
 from app.services.issia.sequences import import_issia
+from tests.conftest import migrate_new_database
 from tests.services.issia_data import dev_dir, dev_truth, write_issia_stretch
 
 
@@ -499,14 +500,14 @@ def test_issia3d_export_writes_each_cameras_calibration(db_session, db_settings,
 def test_the_issia3d_export_imports_into_a_fresh_database_as_it_left(db_session, db_settings, stretch, tmp_path):
     """The export's sequence folder (ISSIA-3D.csv, issia_calibration.json) is an ISSIA folder: imported into an empty
     database it gives the same frames, point labels and cameras."""
-    from app.db.session import make_engine, upgrade_database
+    from app.db.session import make_engine
 
     import_issia(db_session, stretch, db_settings)
     export_issia3d(db_session, tmp_path / "out", include_all=True)
     folder = tmp_path / "out" / "issia-dev"
     assert sorted(json.loads((folder / "issia_calibration.json").read_text())) == [str(k) for k in range(1, 7)]
     url = f"sqlite:///{tmp_path / 'fresh.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = db_settings.model_copy(update={"database_url": url})
     with Session(make_engine(url)) as fresh:
         import_issia(fresh, folder, settings)

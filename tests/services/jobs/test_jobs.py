@@ -17,9 +17,10 @@ import sqlalchemy as sa
 
 from app.core.config import Settings
 from app.db.models import Game, Job, JobState
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.db.types import utcnow
 from app.services.jobs import runner as jobs
+from tests.conftest import migrate_new_database
 
 from ..datasets import write_v3_game
 
@@ -27,7 +28,7 @@ from ..datasets import write_v3_game
 @pytest.fixture
 def factory(tmp_path: Path):
     url = f"sqlite:///{tmp_path / 'jobs.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     engine = make_engine(url)
     yield url, make_session_factory(engine)
     engine.dispose()

@@ -12,9 +12,9 @@ import pytest
 
 from app.core.config import Settings, node_name
 from app.db.models import Job, JobState
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.services.jobs import runner as jobs
-from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database
+from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database, migrate_new_database
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
@@ -35,7 +35,7 @@ def test_the_node_name_defaults_to_the_host_name_and_refuses_a_colon() -> None:
 
 
 def test_a_job_whose_node_stopped_is_taken_over_by_another_node_after_its_heartbeat_goes_stale(database) -> None:
-    upgrade_database(database)
+    migrate_new_database(database)
     engine = make_engine(database)
     make = make_session_factory(engine)
     try:

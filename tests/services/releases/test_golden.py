@@ -31,7 +31,7 @@ from app.db.models import (
     System,
     SystemKind,
 )
-from app.db.session import make_engine, upgrade_database
+from app.db.session import make_engine
 from app.db.types import canonical_json, decompressed_json, json_digest
 from app.services.exports.files import write_export_zip
 from app.services.exports.formats import RELEASE_EXPORTS
@@ -39,6 +39,7 @@ from app.services.releases.content import create_release, release_hash
 from app.services.releases.diff import VIEW_CHANGES
 from app.services.releases.document import DOCUMENT_VERSION, FRAME_KEYS, READERS, read_game, read_system
 from app.services.releases.render import ExportSettings, v1
+from tests.conftest import migrate_new_database
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 #: The formats whose release exports have golden files: every one a release exports to.
@@ -58,7 +59,7 @@ def _load(folder: Path, work: Path, export_settings: dict | None = None) -> tupl
     copy (rows holding only what an export reads of them: their ids, names and images). ``export_settings``: what
     the release row records of them (None: nothing, as the releases made before they were recorded)."""
     url = f"sqlite:///{work / 'golden.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     session = Session(make_engine(url))
     stored = _stored(folder)
     frames = json.loads((folder / "frames.json").read_text())

@@ -18,12 +18,13 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import BallLabel, ReleaseDocument, ReviewDecision, ReviewStatus, System, Triangulation
-from app.db.session import make_engine, upgrade_database
+from app.db.session import make_engine
 from app.services.derivation.recompute import recompute_system
 from app.services.exports.files import write_export_zip
 from app.services.releases.content import create_release, get_release, release_content
 from app.services.releases.diff import diff_releases
 from tests.api.factories import make_game, make_system
+from tests.conftest import migrate_new_database
 
 _EXPORT = """
 import sys
@@ -50,7 +51,7 @@ def _accept(session: Session, system_id: int) -> None:
 
 def _database(tmp_path: Path) -> tuple[str, Settings, Session, list[int]]:
     url = f"sqlite:///{tmp_path / 'v3d.sqlite3'}"
-    upgrade_database(url)
+    migrate_new_database(url)
     settings = Settings(database_url=url, calibration_workers=1)
     session = Session(make_engine(url))
     game = make_game(session)

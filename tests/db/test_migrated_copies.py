@@ -1,0 +1,49 @@
+"""The suite's new SQLite databases are copies of one migrated once per test process
+(``tests.conftest.migrate_new_database``): each must be what the migrations make, its session key its own."""
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+from app.db.session import upgrade_database
+from tests.conftest import migrate_new_database
+
+
+def _facts(path: Path) -> tuple[dict[str, list[str]], str, str]:
+    """Each table's and index's definition (its clauses sorted: Alembic's batch moves write a rebuilt table's
+    constraints in an order that changes from one run of the migrations to the next), the revision, the session key."""
+    with sqlite3.connect(path) as db:
+        rows = db.execute("SELECT name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_stat%'").fetchall()
+        revision = db.execute("SELECT version_num FROM alembic_version").fetchone()[0]
+        key = db.execute("SELECT value FROM server_secrets WHERE name = 'session'").fetchone()[0]
+    return {name: _clauses(sql or "") for name, sql in rows}, revision, key
+
+
+def _clauses(sql: str) -> list[str]:
+    """A definition's head, then the clauses between its outer parentheses, sorted."""
+    text = " ".join(sql.split())
+    if "(" not in text or not text.endswith(")"):
+        return [text]
+    head, body = text.split("(", 1)
+    return [head.strip(), *sorted(part.strip() for part in body[:-1].split(", "))]
+
+
+def test_a_copied_database_is_what_the_migrations_make_with_a_session_key_of_its_own(tmp_path: Path) -> None:
+    upgrade_database(f"sqlite:///{tmp_path / 'migrated.sqlite3'}")
+    migrate_new_database(f"sqlite:///{tmp_path / 'a' / 'copy.sqlite3'}")
+    migrate_new_database(f"sqlite:///{tmp_path / 'b' / 'copy.sqlite3'}")
+    migrated, a, b = (_facts(p) for p in (tmp_path / "migrated.sqlite3", tmp_path / "a" / "copy.sqlite3",
+                                           tmp_path / "b" / "copy.sqlite3"))
+    assert a[:2] == migrated[:2] and b[:2] == migrated[:2]  # the same tables, indexes and revision
+    assert len({migrated[2], a[2], b[2]}) == 3  # each its own session key, as the migration draws one
+
+
+def test_an_existing_database_is_migrated_not_replaced(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'kept.sqlite3'}"
+    migrate_new_database(url)
+    with sqlite3.connect(tmp_path / "kept.sqlite3") as db:
+        db.execute("INSERT INTO games (league, season, match, source_path, created_at) "
+                   "VALUES ('l', 's', 'kept', '/x', '2026-11-29 08:00:00')")
+    migrate_new_database(url)
+    with sqlite3.connect(tmp_path / "kept.sqlite3") as db:
+        assert db.execute("SELECT match FROM games").fetchall() == [("kept",)]
