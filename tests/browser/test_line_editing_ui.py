@@ -312,6 +312,7 @@ def test_an_undo_after_someone_elses_edit_stops_with_the_conflict_notice(page, a
     assert _api(page, f"/api/frames/{fid}")["field_lines"] == theirs
 
     page.keyboard.press("?")
+    page.locator(tid("keys-help")).wait_for(state="visible")
     rows = page.locator("[data-testid=keys-help] .keys-grid").inner_text()
     for row in ("Ctrl+Z", "Ctrl+Shift+Z", "edit the selected view's field lines", "Shift+Del",
                 "draw a new line of the chosen class"):

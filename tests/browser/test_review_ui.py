@@ -12,7 +12,7 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, settled, tid
 
 pytestmark = pytest.mark.browser
 
@@ -216,7 +216,7 @@ def test_api_errors_are_shown(page):
     error.wait_for(state="visible")
     assert error.inner_text().startswith("422: error_min (5.0) is larger than error_max (1.0)")
     page.click(tid("error-dismiss"))
-    assert not error.is_visible()
+    error.wait_for(state="hidden")
 
     sid = _api(page, "/api/systems?limit=1")["items"][0]["id"]
     page.goto(f"/systems/{sid}?jac_min=150")  # percent on screen: 1.5 as a fraction
@@ -342,6 +342,7 @@ def test_system_keys_move_and_decide(page):
     page.locator(tid("system-name")).filter(has_text=listing[1]["name"]).wait_for()
 
     page.keyboard.press("c")
+    settled(page)  # the key may wait for the page's work; then it has focused the box
     assert page.evaluate("document.activeElement.dataset.testid") == "comment"
     page.keyboard.press("Control+a")  # the box holds the system's current comment, if any
     page.keyboard.type("jk")
@@ -401,6 +402,7 @@ def test_keyboard_nudge_is_saved_before_the_decision(page):
     page.goto(f"/systems/{sid}?sort=name")
     page.locator(tid("view")).nth(k).locator(tid("ball-hit")).wait_for()
     page.keyboard.press(str(k + 1))
+    settled(page)  # a key typed while the page still takes in its answers is applied once it can act
     assert "selected" in page.locator(tid("view")).nth(k).get_attribute("class")
     methods: list[str] = []
     # the edits and the decision (the review pass's own bookkeeping, /api/passes, and the presence heartbeat aside)

@@ -424,6 +424,7 @@ def test_the_detectors_page_lists_the_imported_sources_and_removes_one_in_words(
     assert page.evaluate("() => document.documentElement.scrollWidth <= window.innerWidth")
 
     row.locator(tid("source-remove")).click()
+    row.locator(tid("source-remove-words")).filter(has_text="labels placed from them stay").wait_for()
     words = row.locator(tid("source-remove-words")).inner_text()
     assert f"Remove the {n} ball boxes of {source}?" in words and "labels placed from them stay" in words
     page.screenshot(path=str(artifacts / f"walk2/detectors-confirm-{w}x{h}.png"))

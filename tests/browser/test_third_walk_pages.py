@@ -248,7 +248,8 @@ def test_an_admin_adds_a_user_changes_its_role_issues_and_revokes_a_token_and_di
         assert line.locator(tid("token-label")).inner_text() == "laptop"
         assert line.locator(tid("token-state")).inner_text() == "active"
         page.locator(tid("token-shown-close")).click()
-        assert page.locator(tid("token-shown")).is_hidden() and page.locator(tid("token-value")).inner_text() == ""
+        page.locator(tid("token-shown")).wait_for(state="hidden")
+        assert page.locator(tid("token-value")).inner_text() == ""
         asked = []
         page.once("dialog", lambda d: (asked.append(d.message), d.accept()))
         with _answer_of(page, "DELETE", f"/api/users/nadia/tokens/{laptop['id']}"):
