@@ -1,5 +1,5 @@
 """The enums the models store by value: system kinds, frame roles, calibration sources and statuses, ball
-kinds, triangulation statuses, job states, review statuses, user roles (the one home of each; the API's
+kinds, triangulation statuses, the evidence behind a 3D ball, job states, review statuses, user roles (the one home of each; the API's
 ``Literal``s derive from them).
 """
 from __future__ import annotations
@@ -53,6 +53,20 @@ class TriangulationStatus(str, enum.Enum):
     TRIANGULATED = "triangulated"  # at least one pair kept; ``ball3d`` is the mean of the kept points
     INSUFFICIENT_VIEWS = "insufficient_views"  # fewer than two admitted views with a ball label
     NO_PAIR_KEPT = "no_pair_kept"  # every pair dropped (tau, baseline, cheirality or degenerate)
+
+
+class BallEvidence(str, enum.Enum):
+    """What backs a system's stored 3D ball (``app.geometry.ball_evidence``), stored with the ball so that the queue
+    filters by it without computing it."""
+
+    #: No label doubt, and evidence independent of the two rays that make a ball agrees with it.
+    VOUCHED = "vouched"
+    #: It rests on the views' own agreement; nothing else checks it (typically two views).
+    UNCONFIRMED = "unconfirmed"
+    #: A label doubt of the system names a view the ball uses.
+    DOUBTED = "doubted"
+    #: The system has no 3D ball.
+    NONE = "none"
 
 
 class JobState(str, enum.Enum):
