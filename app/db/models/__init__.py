@@ -53,7 +53,14 @@ from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, Pl
 from app.db.models.operations import AuditEntry, AuditState, Job
 from app.db.models.predictions import Prediction
 from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
-from app.db.models.review import ReviewComment, ReviewDecision, ReviewHandoff, ReviewPass, SystemPresence
+from app.db.models.review import (
+    ReviewBatch,
+    ReviewComment,
+    ReviewDecision,
+    ReviewHandoff,
+    ReviewPass,
+    SystemPresence,
+)
 
 __all__ = [
     "Base",
@@ -84,6 +91,7 @@ __all__ = [
     "ReleaseDocument",
     "ReleaseGame",
     "ReleaseSystem",
+    "ReviewBatch",
     "ReviewComment",
     "ReviewDecision",
     "ReviewHandoff",

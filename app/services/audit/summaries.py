@@ -168,7 +168,8 @@ def _decision_words(state: Any, what: str) -> str:
     r = state if isinstance(state, Mapping) else {}
     status = str(r.get("status") or "pending")
     comment = r.get("comment") or ""
-    return f"{what} {STATUS_WORDS.get(status, status)}" + (f" ({comment[:80]})" if comment else "")
+    batch = f" in batch {r['batch_id']} after a sample" if isinstance(r.get("batch_id"), int) else ""
+    return f"{what} {STATUS_WORDS.get(status, status)}{batch}" + (f" ({comment[:80]})" if comment else "")
 
 
 def import_words(before: Any, after: Any) -> str:
@@ -227,6 +228,8 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
     'V3 excluded from the 3D ball'
     >>> summarize("system.review", {"review": {"status": "pending"}}, {"review": {"status": "accepted"}})
     'system accepted'
+    >>> summarize("system.review", {"review": {"status": "pending"}}, {"review": {"status": "accepted", "batch_id": 4}})
+    'system accepted in batch 4 after a sample'
     """
     before = before if isinstance(before, Mapping) else {}
     after = after if isinstance(after, Mapping) else {}

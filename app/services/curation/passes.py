@@ -113,6 +113,24 @@ def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS
     return rp
 
 
+def start_listed_pass(session: Session, user: str, filters: dict[str, Any], sort: str, ids: list[int],
+                      keep: int = 50) -> ReviewPass:
+    """A pass of ``user`` over a list of systems no queue orders (a batch's sample, ``app.services.curation.batches``),
+    stored with ``filters`` and ``sort`` naming where the list comes from: the user's newest pass of the same
+    ``filters`` and ``sort``, else a new one over ``ids`` in their order (committed; the user's passes beyond the newest
+    ``keep`` dropped, as :func:`start_pass` does)."""
+    for rp in session.scalars(sa.select(ReviewPass).where(ReviewPass.user_name == user, ReviewPass.sort == sort)
+                              .order_by(ReviewPass.id.desc()).limit(20)):
+        if rp.filters == filters and rp.system_ids == ids:
+            return rp
+    with write_unit(session):
+        rp = ReviewPass(user_name=user, filters=filters, sort=sort, system_ids=ids, position=0)
+        session.add(rp)
+        session.flush()
+        _drop_beyond(session, user, keep, rp.id)
+    return rp
+
+
 def _drop_beyond(session: Session, user: str, keep: int, newest_id: int) -> None:
     """Delete ``user``'s passes beyond the ``keep`` most recently visited (ties: the newer first), never the pass
     ``newest_id`` just begun; under the caller's write lock."""
