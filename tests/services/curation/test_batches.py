@@ -72,7 +72,8 @@ def test_a_batch_takes_the_pending_vouched_systems_and_draws_its_sample_at_rando
     assert batch.system_ids == ids[:3] and batch.state == "open"
     assert batch.versions == [db_session.get(System, i).version for i in ids[:3]]  # type: ignore[union-attr]
     assert len(batch.sample_ids) == 2 and set(batch.sample_ids) <= set(ids[:3])
-    assert batches.batch_plan(batch) == "if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 3 are"
+    assert batches.batch_plan(batch) == ("if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 3 "
+                                         "are")
     samples = {tuple(_batch(db_session, seed).sample_ids) for seed in range(12)}
     assert len(samples) == 3  # every pair of the three is drawn by some seed
     game_only = batches.create_batch(db_session, "rev", SystemFilters(game_id=five[0].game_id + 1000), 0.95, 0.05)
