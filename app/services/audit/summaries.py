@@ -165,6 +165,11 @@ def lines_words(before: Any, after: Any) -> str:
 
 
 def _decision_words(state: Any, what: str) -> str:
+    """A decision's state in words, naming the batch that accepted it after a sample.
+
+    >>> _decision_words({"status": "accepted", "batch_id": 4}, "system")
+    'system accepted in batch 4 after a sample'
+    """
     r = state if isinstance(state, Mapping) else {}
     status = str(r.get("status") or "pending")
     comment = r.get("comment") or ""
@@ -228,8 +233,6 @@ def summarize(action: str, before: Any, after: Any, *, view: Optional[str] = Non
     'V3 excluded from the 3D ball'
     >>> summarize("system.review", {"review": {"status": "pending"}}, {"review": {"status": "accepted"}})
     'system accepted'
-    >>> summarize("system.review", {"review": {"status": "pending"}}, {"review": {"status": "accepted", "batch_id": 4}})
-    'system accepted in batch 4 after a sample'
     """
     before = before if isinstance(before, Mapping) else {}
     after = after if isinstance(after, Mapping) else {}

@@ -115,6 +115,8 @@ def plan_words(sampled: int, total: int, confidence: float, max_wrong_share: flo
 
     >>> plan_words(59, 240, 0.95, 0.05)
     'if none of these 59 is wrong, you can be 95 % sure that at most 5 % of the 240 are'
+    >>> plan_words(1, 2, 0.5, 0.5)
+    'if this one is not wrong, you can be 50 % sure that at most 50 % of the 2 are'
     >>> plan_words(3, 3, 0.95, 0.05)
     'all 3 are in the sample: if none of them is wrong, none of the 3 is'
     >>> plan_words(0, 0, 0.95, 0.05)
@@ -124,8 +126,9 @@ def plan_words(sampled: int, total: int, confidence: float, max_wrong_share: flo
         return "no pending vouched system matches these filters: nothing to sample"
     if sampled >= total:
         return f"all {total} are in the sample: if none of them is wrong, none of the {total} is"
-    return (f"if none of these {sampled} is wrong, you can be {percent(confidence)} sure that at most "
-            f"{percent(max_wrong_share)} of the {total} are")
+    which = "this one is not wrong" if sampled == 1 else f"none of these {sampled} is wrong"
+    return (f"if {which}, you can be {percent(confidence)} sure that at most {percent(max_wrong_share)} of the "
+            f"{total} are")
 
 
 @dataclass(frozen=True)

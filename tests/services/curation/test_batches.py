@@ -15,6 +15,7 @@ from app.db.models import AuditEntry, ReviewStatus, System, User, UserRole
 from app.db.models.enums import BallEvidence
 from app.services.curation import batches, decisions, editing, passes
 from app.services.curation.queue import SystemFilters
+from app.services.releases.content import create_release, read_systems, release_content
 from tests.api.factories import Scene, ball_box, make_game, make_system
 
 pytestmark = pytest.mark.engine
@@ -45,10 +46,16 @@ def five(db_session: Session, db_settings: Settings) -> list[Scene]:
     game = make_game(db_session)
     scenes = [make_system(db_session, db_settings, game, f"{i + 1}.png") for i in range(5)]
     for i, scene in enumerate(scenes):
-        db_session.get(System, scene.system_id).ball_evidence = (  # type: ignore[union-attr]
+        _system(db_session, scene.system_id).ball_evidence = (
             BallEvidence.VOUCHED if i < 4 else BallEvidence.UNCONFIRMED)
     db_session.commit()
     return scenes
+
+
+def _system(session: Session, system_id: int) -> System:
+    system = session.get(System, system_id)
+    assert system is not None
+    return system
 
 
 def _batch(session: Session, seed: int = 3) -> batches.ReviewBatch:
@@ -70,7 +77,7 @@ def test_a_batch_takes_the_pending_vouched_systems_and_draws_its_sample_at_rando
     _decide(db_session, ids[3], "rejected")  # decided: no longer pending
     batch = _batch(db_session)
     assert batch.system_ids == ids[:3] and batch.state == "open"
-    assert batch.versions == [db_session.get(System, i).version for i in ids[:3]]  # type: ignore[union-attr]
+    assert batch.versions == [_system(db_session, i).version for i in ids[:3]]
     assert len(batch.sample_ids) == 2 and set(batch.sample_ids) <= set(ids[:3])
     assert batches.batch_plan(batch) == ("if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 3 "
                                          "are")
@@ -94,7 +101,7 @@ def test_a_batch_whose_sample_a_person_accepted_accepts_the_rest_each_with_its_a
     for sid in batch.sample_ids:
         _decide(db_session, sid, "accepted", actor="ana")
     assert batches.stops(db_session, batch) == []
-    versions = {i: db_session.get(System, i).version for i in others}  # type: ignore[union-attr]
+    versions = {i: _system(db_session, i).version for i in others}
 
     assert batches.accept_batch(db_session, batch.id, "rev") == len(others) == 2
     db_session.expire_all()
@@ -117,9 +124,9 @@ def test_a_batch_whose_sample_a_person_accepted_accepts_the_rest_each_with_its_a
     undone = batches.undo_batch(db_session, batch.id, "rev")
     assert undone.undone == 1 and [s.system_id for s in undone.kept] == [others[0]]
     db_session.expire_all()
-    assert db_session.get(System, others[1]).review_status is ReviewStatus.PENDING  # type: ignore[union-attr]
-    assert db_session.get(System, others[0]).review_status is ReviewStatus.REJECTED  # type: ignore[union-attr]
-    assert db_session.get(System, others[1]).review.batch_id is None  # type: ignore[union-attr]
+    assert _system(db_session, others[1]).review_status is ReviewStatus.PENDING
+    assert _system(db_session, others[0]).review_status is ReviewStatus.REJECTED
+    assert _system(db_session, others[1]).review.batch_id is None
     with pytest.raises(ConflictError, match="accepted nothing to undo"):
         batches.undo_batch(db_session, batch.id, "rev")
 
@@ -137,7 +144,7 @@ def test_a_rejected_sample_refuses_the_batch_for_good(db_session: Session, five:
     with pytest.raises(ConflictError) as again:
         batches.accept_batch(db_session, batch.id, "rev")
     assert str(again.value) == str(refused.value)
-    assert all(db_session.get(System, i).review_status is ReviewStatus.PENDING  # type: ignore[union-attr]
+    assert all(_system(db_session, i).review_status is ReviewStatus.PENDING
                for i in batch.system_ids if i not in batch.sample_ids)
 
 
@@ -192,3 +199,24 @@ def test_the_sample_pass_walks_the_sample_and_is_continued(db_session: Session, 
     _decide(db_session, batch.sample_ids[0], "accepted")
     place = passes.place(db_session, rp, batch.sample_ids[0])
     assert place.next_pending_id == batch.sample_ids[1] and place.total == 2
+
+
+def test_a_new_release_says_how_each_system_was_accepted(db_session: Session, five: list[Scene]) -> None:
+    batch = _batch(db_session)
+    for sid in batch.sample_ids:
+        _decide(db_session, sid, "accepted", actor="ana")
+    batches.accept_batch(db_session, batch.id, "rev")
+    release = create_release(db_session, "sampled", actor="rev")
+    content = release_content(db_session, release)
+    documents = read_systems(db_session, [d for _, _, d in content.systems.values()])
+    accepted = {sid: documents[d].accepted for sid, (_, _, d) in content.systems.items()}
+    assert sorted(accepted) == sorted(batch.system_ids)
+    for sid, how in accepted.items():
+        assert how is not None
+        if sid in batch.sample_ids:
+            assert how.as_json() == {"how": "person"}
+        else:
+            assert how.as_json() == {
+                "how": "batch", "batch_id": batch.id, "confidence": 0.75, "max_wrong_share": 0.5, "sample": 2,
+                "systems": 4,
+                "plan": "if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 4 are"}
