@@ -9,8 +9,7 @@ from pydantic import BaseModel, Field
 
 from app.api.pass_schemas import PassFilterIn
 from app.api.schemas import ErrorOut, _In
-from app.db.models import ReviewBatch
-from app.services.curation.batches import Stop, Undone, batch_plan
+from app.services.curation.batches import Stop, Undone
 
 
 class BatchIn(_In):
@@ -62,12 +61,9 @@ class BatchOut(BaseModel):
     stops: list[StopOut]
 
     @classmethod
-    def of(cls, batch: ReviewBatch, stops: list[Stop]) -> "BatchOut":
-        return cls(id=batch.id, created_by=batch.created_by, created_at=batch.created_at, filter=dict(batch.filters),
-                   confidence=batch.confidence, max_wrong_share=batch.max_wrong_share,
-                   systems=list(batch.system_ids), sample=list(batch.sample_ids), plan=batch_plan(batch),
-                   state=batch.state, refusal=batch.refusal, accepted=len(batch.accepted_ids or []),
-                   decided_by=batch.decided_by, decided_at=batch.decided_at, stops=[StopOut.of(s) for s in stops])
+    def of(cls, facts: dict[str, Any]) -> "BatchOut":
+        """From ``app.services.curation.batches.batch_facts``."""
+        return cls.model_validate(facts)
 
 
 class AcceptedOut(BaseModel):

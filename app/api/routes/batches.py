@@ -16,7 +16,7 @@ router = APIRouter(prefix="/batches", tags=["batches"])
 
 
 def _out(session: SessionDep, batch: ReviewBatch) -> BatchOut:
-    return BatchOut.of(batch, batches.stops(session, batch) if batch.state == batches.OPEN else [])
+    return BatchOut.of(batches.batch_facts(session, batch))
 
 
 @router.post("", response_model=BatchOut, status_code=status.HTTP_201_CREATED, responses=INVALID)

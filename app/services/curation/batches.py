@@ -141,6 +141,19 @@ class Stop:
     final: bool
 
 
+def batch_facts(session: Session, batch: ReviewBatch) -> dict[str, Any]:
+    """A batch as the API and the command line show it (``app.api.batch_schemas.BatchOut``'s fields): who made it,
+    when, from which filters and plan, its systems and sample ids, the plan in words, its state, refusal, how many it
+    accepted, and, while open, what stops its accept now (:func:`stops`, as dicts)."""
+    found_stops = stops(session, batch) if batch.state == OPEN else []
+    return {"id": batch.id, "created_by": batch.created_by, "created_at": batch.created_at,
+            "filter": dict(batch.filters), "confidence": batch.confidence, "max_wrong_share": batch.max_wrong_share,
+            "systems": list(batch.system_ids), "sample": list(batch.sample_ids), "plan": batch_plan(batch),
+            "state": batch.state, "refusal": batch.refusal, "accepted": len(batch.accepted_ids or []),
+            "decided_by": batch.decided_by, "decided_at": batch.decided_at,
+            "stops": [dataclasses.asdict(s) for s in found_stops]}
+
+
 def batch_plan(batch: ReviewBatch) -> str:
     """:func:`plan_words` of a stored batch."""
     return plan_words(len(batch.sample_ids), len(batch.system_ids), batch.confidence, batch.max_wrong_share)

@@ -381,6 +381,51 @@ class JobPage(Model):
     offset: int
 
 
+# ----- batches ----------------------------------------------------------------------------------------------------
+class BatchStop(Model):
+    """A system that stops a batch's accept, in words; ``final``: for good (a rejection, a change), else the batch
+    waits for it (a sampled system not decided yet)."""
+
+    system_id: int
+    words: str
+    final: bool
+
+
+class Batch(Model):
+    """A batch of pending vouched systems accepted after a random sample: ``systems`` it holds, the ``sample`` a
+    person reviews, the ``plan`` in words, its ``state`` (open, accepted, refused, undone) and, while open, what stops
+    its accept now (``stops``)."""
+
+    id: int
+    created_by: str
+    created_at: datetime
+    filter: dict[str, Any]
+    confidence: float
+    max_wrong_share: float
+    systems: list[int]
+    sample: list[int]
+    plan: str
+    state: str
+    refusal: Optional[str] = None
+    accepted: int
+    decided_by: Optional[str] = None
+    decided_at: Optional[datetime] = None
+    stops: list[BatchStop] = []
+
+
+class BatchAccepted(Model):
+    """How many systems a batch's accept accepted."""
+
+    accepted: int
+
+
+class BatchUndone(Model):
+    """A batch undone: ``undone`` systems back to pending; ``kept``: those decided by a person since."""
+
+    undone: int
+    kept: list[BatchStop] = []
+
+
 # ----- releases -------------------------------------------------------------------------------------------------
 class Release(Model):
     """A release: the accepted systems as they were when it was made, immutably, under a name and a hash."""
