@@ -1,6 +1,6 @@
 """The enums the models store by value: system kinds, frame roles, calibration sources and statuses, ball
-kinds, triangulation statuses, the evidence behind a 3D ball, job states, review statuses, user roles (the one home of each; the API's
-``Literal``s derive from them).
+kinds, triangulation statuses, the evidence behind a 3D ball, job states, review statuses, user roles (the one home
+of each; the API's ``Literal``s derive from them).
 """
 from __future__ import annotations
 
