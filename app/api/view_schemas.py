@@ -17,6 +17,7 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
 from app.db.models import (
+    BallEvidence,
     BallKind,
     BallLabel,
     Calibration,
@@ -159,6 +160,13 @@ class SystemSummaryOut(BaseModel):
     review: ReviewOut
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma (m, its least certain direction).")
+    ball_evidence: BallEvidence = Field(
+        BallEvidence.NONE, description="What backs the 3D ball (app.geometry.ball_evidence): vouched (no label doubt, "
+        "and evidence beside its two rays agrees), unconfirmed (nothing but its views' own agreement), doubted (a "
+        "label doubt names a view it uses), none (no 3D ball).")
+    ball_evidence_reasons: list[str] = Field(
+        default_factory=list, description="Why, as short phrases (\"three views agree\", \"only two views: nothing "
+        "else checks it\"); empty without a ball.")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -181,12 +189,13 @@ class SystemSummaryOut(BaseModel):
         """A queue row from a system loaded with its game, review and triangulation, with its assignment and
         presence when given."""
         tri = system.triangulation
-        shaped = ("game", "review", "ball3d", "ball_sigma_m", "assignment", "open_by")
+        shaped = ("game", "review", "ball3d", "ball_sigma_m", "assignment", "open_by", "ball_evidence_reasons")
         return cls.model_validate({
             **{name: getattr(system, name) for name in cls.model_fields if name not in shaped},
             "game": system.game, "review": ReviewOut.of(system.review),
             "ball3d": None if tri is None else tri.ball3d, "ball_sigma_m": None if tri is None else tri.sigma_m,
             "doubt_counts": system.doubt_counts or {}, "assignment": assignment, "open_by": open_by or [],
+            "ball_evidence_reasons": list(system.ball_evidence_reasons or []),
         })
 
 
@@ -546,6 +555,13 @@ class SystemView(BaseModel):
     next_id: Optional[int]
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres (triangulation.sigma_m).")
+    ball_evidence: BallEvidence = Field(
+        BallEvidence.NONE, description="What backs the 3D ball (app.geometry.ball_evidence): vouched (no label doubt, "
+        "and evidence beside its two rays agrees), unconfirmed (nothing but its views' own agreement), doubted (a "
+        "label doubt names a view it uses), none (no 3D ball).")
+    ball_evidence_reasons: list[str] = Field(
+        default_factory=list, description="Why, as short phrases (\"three views agree\", \"only two views: nothing "
+        "else checks it\"); empty without a ball.")
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
     doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
@@ -566,6 +582,7 @@ class SystemView(BaseModel):
             prev_id=page.prev_id, next_id=page.next_id, ball3d=tri.ball3d if tri is not None else None,
             triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
             ball_sigma_m=tri.sigma_m if tri is not None else None, views=[ViewOut.of(f, tri) for f in system.frames],
+            ball_evidence=system.ball_evidence, ball_evidence_reasons=list(system.ball_evidence_reasons or []),
             doubts=[DoubtOut.of(d, names) for d in system.doubts],
             assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
         )

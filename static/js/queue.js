@@ -251,7 +251,10 @@ class QueuePage {
           el("td", { class: "num", title: Array.isArray(s.ball3d) ? "x, y on the pitch (m); height above the grass" : null },
             Array.isArray(s.ball3d) && s.ball3d.every(isNum)
               ? `${s.ball3d[0].toFixed(1)}, ${s.ball3d[1].toFixed(1)} · ${heightText(s.ball3d[2])}`
-              : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
+              : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view"),
+            s.ball_evidence && s.ball_evidence !== "none"
+              ? el("div", { class: `evidence ${s.ball_evidence}`, "data-testid": "row-evidence", title: (s.ball_evidence_reasons || []).join("; ") }, s.ball_evidence)
+              : null),
           el("td", { "data-testid": "row-doubts" }, rowDoubts(s)),
         );
       }),

@@ -39,6 +39,7 @@ from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, Use
 from app.db.models.base import JAC_COLUMNS, NAMING_CONVENTION, Base
 from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation, TriangulationPair
 from app.db.models.enums import (
+    BallEvidence,
     BallKind,
     CalibrationSource,
     CalibrationStatus,
@@ -66,6 +67,7 @@ __all__ = [
     "Base",
     "JAC_COLUMNS",
     "NAMING_CONVENTION",
+    "BallEvidence",
     "BallKind",
     "CalibrationSource",
     "CalibrationStatus",

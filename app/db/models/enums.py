@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import enum
 
+from app.geometry.ball_evidence import TIER_DOUBTED, TIER_NONE, TIER_UNCONFIRMED, TIER_VOUCHED
+
 
 # ----- enums ---------------------------------------------------------------------------------------
 class SystemKind(str, enum.Enum):
@@ -56,17 +58,17 @@ class TriangulationStatus(str, enum.Enum):
 
 
 class BallEvidence(str, enum.Enum):
-    """What backs a system's stored 3D ball (``app.geometry.ball_evidence``), stored with the ball so that the queue
-    filters by it without computing it."""
+    """What backs a system's stored 3D ball (``app.geometry.ball_evidence``, whose rule names the tiers), stored with
+    the ball so that the queue filters by it without computing it."""
 
     #: No label doubt, and evidence independent of the two rays that make a ball agrees with it.
-    VOUCHED = "vouched"
+    VOUCHED = TIER_VOUCHED
     #: It rests on the views' own agreement; nothing else checks it (typically two views).
-    UNCONFIRMED = "unconfirmed"
+    UNCONFIRMED = TIER_UNCONFIRMED
     #: A label doubt of the system names a view the ball uses.
-    DOUBTED = "doubted"
+    DOUBTED = TIER_DOUBTED
     #: The system has no 3D ball.
-    NONE = "none"
+    NONE = TIER_NONE
 
 
 class JobState(str, enum.Enum):

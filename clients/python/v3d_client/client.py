@@ -356,21 +356,24 @@ class Client:
                 assignee: Optional[str] = None, jac_min: Optional[float] = None, jac_max: Optional[float] = None,
                 error_min: Optional[float] = None, error_max: Optional[float] = None,
                 sigma_min: Optional[float] = None, sigma_max: Optional[float] = None, camera: Optional[str] = None,
-                sort: Optional[str] = None, page_size: int = 200) -> Iterator[SystemSummary]:
+                ball_evidence: Optional[str] = None, sort: Optional[str] = None,
+                page_size: int = 200) -> Iterator[SystemSummary]:
         """Every system of the queue that the filters keep, in the queue's order (``sort``), page after page by
         the queue's cursor (a system moved meanwhile is neither skipped nor repeated by the pages).
 
         Args:
             status: pending, accepted, rejected, needs_fix or fixed.
             doubt: a doubt kind (``mirrored_labels`` ...), ``any`` (a label-accusing doubt) or ``none``.
-            game_id, assignee, jac_min, jac_max, error_min, error_max, sigma_min, sigma_max, camera, sort: the queue's
-                filters (``docs/api.md``); errors in pixels, JaC a fraction, the 3D ball's sigma in metres.
+            game_id, assignee, jac_min, jac_max, error_min, error_max, sigma_min, sigma_max, camera, ball_evidence,
+                sort: the queue's filters (``docs/api.md``); errors in pixels, JaC a fraction, the 3D ball's sigma in
+                metres, ``ball_evidence`` a tier (vouched, unconfirmed, doubted, none).
             page_size: systems a request (at most 500).
         """
         params: dict[str, Any] = {"status": status, "doubt": doubt, "game_id": game_id, "assignee": assignee,
                                   "jac_min": jac_min, "jac_max": jac_max, "error_min": error_min,
                                   "error_max": error_max, "sigma_min": sigma_min, "sigma_max": sigma_max,
-                                  "camera": camera, "sort": sort, "limit": page_size}
+                                  "camera": camera, "ball_evidence": ball_evidence, "sort": sort,
+                                  "limit": page_size}
         while True:
             page = self._get("/api/systems", SystemPage, **params)
             yield from page.items

@@ -96,6 +96,9 @@ class SystemSummary(Model):
     ball3d: Optional[Point3] = Field(description="The 3D ball, metres (SoccerNet world frame); None: none.")
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres along its least certain "
                                           "direction; None without one.")
+    ball_evidence: str = Field("none", description="What backs the 3D ball: vouched, unconfirmed, doubted or none "
+                               "(docs/review.md).")
+    ball_evidence_reasons: list[str] = Field([], description="Why, as short phrases.")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -283,6 +286,9 @@ class System(Model):
     next_id: Optional[int]
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = None
+    #: What backs the 3D ball (vouched, unconfirmed, doubted, none) and why, as short phrases.
+    ball_evidence: str = "none"
+    ball_evidence_reasons: list[str] = []
     triangulation: Optional[Triangulation]
     views: list[View]
     doubts: list[Doubt]
@@ -677,4 +683,6 @@ class Stats(Model):
     jac_sweep_by_kind: dict[str, list[SweepPoint]]
     admission: Admission
     stale_systems: int
+    #: Systems per tier of what backs their 3D ball (vouched, unconfirmed, doubted, none).
+    ball_evidence: dict[str, int]
     distributions: dict[str, Histogram]
