@@ -19,9 +19,12 @@ _SAMPLE_URL = re.compile(r"/systems/(\d+)\?.*batch=(\d+)")
 
 
 def _vouch(seeded_settings, ids: list[int]) -> None:
-    """Mark ``ids`` vouched for in the served database (the tier's computation is not this test's subject)."""
+    """Make ``ids`` the pending systems vouched for in the served database, the other pending ones the rule vouched
+    for unconfirmed (the tier's computation is not this test's subject: the batch's systems are known)."""
     path = sa.make_url(seeded_settings.database_url).database
     with sqlite3.connect(str(path)) as conn:
+        conn.execute("UPDATE systems SET ball_evidence = 'unconfirmed' WHERE ball_evidence = 'vouched' "
+                     "AND review_status = 'pending'")
         conn.executemany("UPDATE systems SET ball_evidence = 'vouched' WHERE id = ?", [(i,) for i in ids])
 
 

@@ -25,10 +25,12 @@ def cli() -> typer.Typer:
 
 
 def _vouch(served: ServedDemo, count: int) -> list[int]:
-    """Mark ``count`` pending systems of the demo vouched for (the tier's computation is not this test's subject)."""
+    """Make ``count`` pending systems of the demo the ones vouched for, the others the rule vouched for unconfirmed
+    (the tier's computation is not this test's subject: the batch's systems are known)."""
     ids = [s["id"] for s in page_through(served.raw(), "/api/systems", status="pending", sort="name")][:count]
     engine = sa.create_engine(served.settings.database_url)
     with engine.begin() as conn:
+        conn.execute(sa.text("UPDATE systems SET ball_evidence = 'unconfirmed' WHERE ball_evidence = 'vouched'"))
         conn.execute(sa.text("UPDATE systems SET ball_evidence = 'vouched' WHERE id IN ("
                              + ", ".join(str(int(i)) for i in ids) + ")"))
     engine.dispose()

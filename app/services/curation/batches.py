@@ -49,6 +49,7 @@ from app.core.errors import ConflictError, InvalidInputError, found
 from app.db import scope
 from app.db.models import (
     AuditEntry,
+    BallEvidence,
     ReviewBatch,
     ReviewDecision,
     ReviewHandoff,
@@ -56,7 +57,6 @@ from app.db.models import (
     ReviewStatus,
     System,
 )
-from app.db.models.enums import BallEvidence
 from app.db.types import utcnow
 from app.db.unit import write_unit
 from app.services.audit import log as audit
@@ -164,13 +164,15 @@ def vouched_pending(session: Session, filters: SystemFilters) -> list[int]:
 
     Raises:
         InvalidInputError: a status filter other than pending (field ``filter.status``: a batch takes pending systems
-            only).
+            only) or a ball evidence filter other than vouched (field ``filter.ball_evidence``).
     """
     if filters.status not in (None, ReviewStatus.PENDING):
         raise InvalidInputError(f"a batch takes pending systems only, not status {filters.status.value!r}",
                                 field="filter.status")
-    pending = dataclasses.replace(filters, status=ReviewStatus.PENDING)
-    stmt = matching_system_ids(pending).where(System.ball_evidence == VOUCHED)
+    if filters.ball_evidence not in (None, VOUCHED):
+        raise InvalidInputError(f"a batch takes vouched systems only, not {filters.ball_evidence.value!r} ones",
+                                field="filter.ball_evidence")
+    stmt = matching_system_ids(dataclasses.replace(filters, status=ReviewStatus.PENDING, ball_evidence=VOUCHED))
     return [int(i) for i in session.scalars(stmt)]
 
 

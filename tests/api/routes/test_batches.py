@@ -103,6 +103,10 @@ def test_annotators_are_refused_and_bad_bodies_named(client: TestClient, act_as,
     assert client.post("/api/batches", json={"filter": {"colour": 1}}).status_code == 422
     status = client.post("/api/batches", json={"filter": {"status": "accepted"}})
     assert status.status_code == 422 and status.json()["field"] == "filter.status"
+    tier = client.post("/api/batches", json={"filter": {"ball_evidence": "unconfirmed"}})
+    assert tier.status_code == 422 and tier.json()["field"] == "filter.ball_evidence"
+    assert client.post("/api/batches", json={"filter": {"ball_evidence": "vouched", "status": "pending"}}).json()[
+        "systems"] == batch["systems"]
     assert client.get("/api/batches/999999").status_code == 404
     act_as("ana", "annotator")
     assert client.post("/api/batches", json={"filter": {}}).status_code == 403
