@@ -6,7 +6,7 @@
 // (data-testid="pass-finished") and a way back to the queue.
 
 import { ApiError, startPass, visitPass, passPlace, listPasses, getPass, batchPass } from "./api.js";
-import { batchIdOf, showBatchEnd } from "./batch.js";
+import { BATCH_PARAM, batchIdOf, showBatchEnd } from "./batch.js";
 import { el } from "./format.js";
 import { readState, apiFilters, DEFAULT_SORT } from "./queuestate.js";
 
@@ -175,15 +175,17 @@ export async function resumeLink(container) {
     const { id, position } = open;
     const full = await getPass(id);
     const at = full.systems[Math.min(position, full.systems.length - 1)];
-    const q = new URLSearchParams(Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
+    const sample = open.filter.batch_id !== undefined; // a batch's sample (batch.js): no queue's filters nor sort
+    const q = new URLSearchParams(sample ? [[BATCH_PARAM, String(open.filter.batch_id)]]
+      : Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
     for (const k of ["jac_min", "jac_max"]) if (q.has(k)) q.set(k, String(Number(q.get(k)) * 100));
-    if (open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
+    if (!sample && open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
     q.set(PASS_PARAM, String(id));
     container.replaceChildren(el("a", { href: `/systems/${at}?${q}`, "data-testid": "resume-pass",
       title: `resume your review pass of ${new Date(open.created_at).toLocaleString()} at ${position + 1} of ${open.total}: `
         + `${open.counts.skipped} pending; ${describeCounts(open.counts)}` },
     // short: the header stays one line with the user's name and Log out at 1366 px
-    `resume pass ${position + 1}/${open.total}`));
+    `resume ${sample ? "sample" : "pass"} ${position + 1}/${open.total}`));
     container.hidden = false;
   } catch {
     // only an offer: the queue works without it

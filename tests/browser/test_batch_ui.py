@@ -1,8 +1,9 @@
 """Accept the vouched after a sample, in Chromium against the real server: from the queue, "Accept the vouched after a
 sample" (75 % sure that at most 50 % are wrong: a sample of 2 of the 4 vouched) opens a review pass over the sample,
 counted "sample 1 of 2"; two ``a`` typed ahead decide both; the end of the sample offers "accept the other 2" with the
-plan in words, and its button accepts them, each audited with the batch's id. A second batch whose first sampled
-system is rejected (``r``) ends there, saying so and naming it; nothing else of it is accepted."""
+plan in words, and its button accepts them, each audited with the batch's id. A second batch, its sample's pass
+resumed from the queue, whose sampled system is rejected (``r``) ends there, saying so and naming it; nothing else of
+it is accepted."""
 from __future__ import annotations
 
 import re
@@ -77,6 +78,14 @@ def test_the_vouched_are_accepted_after_a_sample_and_a_rejected_sample_ends_its_
     batch = api_json(page, f"/api/batches/{batch_id}")
     assert batch["systems"] == second and len(batch["sample"]) == 1
     rejected = batch["sample"][0]
+    page.goto("/")  # left for the queue, the sample's pass is resumed from there
+    resume = page.locator(tid("resume-pass"))
+    resume.wait_for()
+    assert resume.inner_text() == "resume sample 1/1" and "sort=" not in (resume.get_attribute("href") or "")
+    resume.click()
+    page.wait_for_url(_SAMPLE_URL)
+    page.locator(tid("pass-progress")).filter(has_text="sample 1 of 1").wait_for()
+    settled(page)
     page.keyboard.press("r")
     ended = page.locator(tid("batch-ended"))
     ended.wait_for()
