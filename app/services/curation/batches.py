@@ -390,7 +390,7 @@ class Undone:
 
 def undo_batch(session: Session, batch_id: int, actor: Optional[str]) -> Undone:
     """Put the systems ``batch_id`` accepted back to pending (their decision still the batch's), each with its audit
-    entry, in one write unit, and commit.
+    entry (an undo of the batch's entry of that system, ``reverts_id``), in one write unit, and commit.
 
     Raises:
         NotFoundError: no such batch.
@@ -402,7 +402,9 @@ def undo_batch(session: Session, batch_id: int, actor: Optional[str]) -> Undone:
             raise ConflictError(f"batch {batch.id} accepted nothing to undo (it is {batch.state})",
                                 current={"state": batch.state})
         undone, kept = 0, []
-        for system in _systems(session, list(batch.accepted_ids or [])):
+        accepted = list(batch.accepted_ids or [])
+        entries = _newest_decisions(session, accepted)
+        for system in _systems(session, accepted):
             review = system.review
             if review is None or review.batch_id != batch.id or review.status is not ReviewStatus.ACCEPTED:
                 kept.append(Stop(system.id, f"system {system.id} was decided since the batch accepted it: kept", False))
@@ -411,10 +413,22 @@ def undo_batch(session: Session, batch_id: int, actor: Optional[str]) -> Undone:
             review.status, review.decided_at, review.batch_id = ReviewStatus.PENDING, utcnow(), None
             scope.changed(system)
             audit.record(session, actor=actor, action="system.review", system=system, before=before,
-                         after=review_state(system))
+                         after=review_state(system), reverts_id=entries.get(system.id))
             undone += 1
         batch.state, batch.undone_at = UNDONE, utcnow()
     return Undone(undone, sorted(kept, key=lambda s: s.system_id))
+
+
+def _newest_decisions(session: Session, ids: Sequence[int]) -> dict[int, int]:
+    """The id of the newest system decision entry (``system.review``) of each of ``ids``: for a system whose decision
+    is still a batch's, the batch's acceptance, which its undo names (``reverts_id``: an undo, no person's decision)."""
+    out: dict[int, int] = {}
+    stmt = (sa.select(AuditEntry.system_id, sa.func.max(AuditEntry.id)).where(AuditEntry.action == "system.review")
+            .group_by(AuditEntry.system_id))
+    for start in range(0, len(ids), _CHUNK):
+        rows = session.execute(stmt.where(AuditEntry.system_id.in_(ids[start:start + _CHUNK])))
+        out.update((int(s), int(e)) for s, e in rows if s is not None and e is not None)
+    return out
 
 
 def sample_pass(session: Session, batch: ReviewBatch, user: str, keep: int = 50) -> ReviewPass:

@@ -15,6 +15,7 @@ from app.db.models import AuditEntry, ReviewStatus, System, User, UserRole
 from app.db.models.enums import BallEvidence
 from app.services.curation import batches, decisions, editing, passes
 from app.services.curation.queue import SystemFilters
+from app.services.evaluation.annotators import annotator_figures
 from app.services.releases.content import create_release, read_systems, release_content
 from tests.api.factories import Scene, ball_box, make_game, make_system
 
@@ -220,3 +221,19 @@ def test_a_new_release_says_how_each_system_was_accepted(db_session: Session, fi
                 "how": "batch", "batch_id": batch.id, "confidence": 0.75, "max_wrong_share": 0.5, "sample": 2,
                 "systems": 4,
                 "plan": "if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 4 are"}
+
+
+def test_a_batchs_acceptances_and_their_undo_are_no_persons_decisions(db_session: Session, five: list[Scene]) -> None:
+    batch = _batch(db_session)
+    for sid in batch.sample_ids:
+        _decide(db_session, sid, "accepted", actor="ana")
+    batches.accept_batch(db_session, batch.id, "rev")
+    batches.undo_batch(db_session, batch.id, "rev")
+    figures = {f.name: f for f in annotator_figures(db_session)}
+    assert figures["ana"].decisions == figures["ana"].accepted == 2
+    assert "rev" not in figures or figures["rev"].decisions == 0
+    undo = db_session.scalars(sa.select(AuditEntry).where(AuditEntry.action == "system.review")
+                              .order_by(AuditEntry.id.desc())).first()
+    assert undo is not None and undo.reverts_id is not None
+    undone = db_session.get(AuditEntry, undo.reverts_id)
+    assert undone is not None and undone.system_id == undo.system_id and undone.after["review"]["batch_id"] == batch.id
