@@ -327,7 +327,8 @@ def accept_batch(session: Session, batch_id: int, actor: Optional[str]) -> int:
             raise ConflictError(f"batch {batch.id} waits for its sample: {stop_words(found_stops)}",
                                 current={"state": batch.state})
         else:
-            others = [sid for sid in batch.system_ids if sid not in set(batch.sample_ids)]
+            sampled = set(batch.sample_ids)
+            others = [sid for sid in batch.system_ids if sid not in sampled]
             _accept(session, batch, others, actor)
             batch.state, batch.accepted_ids = ACCEPTED, others
             batch.decided_by, batch.decided_at = audit.public_actor(actor), utcnow()

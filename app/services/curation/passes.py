@@ -23,6 +23,7 @@ transaction; one user's passes cannot grow the database without bound.
 from __future__ import annotations
 
 import dataclasses
+import enum
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -70,13 +71,13 @@ class PassPlace:
 
 
 def filters_json(filters: SystemFilters) -> dict[str, Any]:
-    """The queue filters as stored in a pass: the fields of :class:`SystemFilters` that are set (the status
-    by value)."""
+    """The queue filters as stored in a pass: the fields of :class:`SystemFilters` that are set (an enum, the status
+    or the ball evidence, by value)."""
     out = {}
     for f in dataclasses.fields(filters):
         value = getattr(filters, f.name)
         if value is not None:
-            out[f.name] = value.value if isinstance(value, ReviewStatus) else value
+            out[f.name] = value.value if isinstance(value, enum.Enum) else value
     return out
 
 
