@@ -19,7 +19,8 @@ SoccerNet-v3D paper's triangulation, Sec. 3, checks nothing else). Evidence inde
   ball's pairs where the 3D ball projects, at a ball's size there: a third ray;
 * **the label's size at the ball's depth** (:func:`label_size_ratio`): a label's box against the silhouette of a
   0.22 m sphere at the 3D ball (Hartley and Zisserman 8.3): measured, it does not separate right balls from wrong ones
-  (labels' sizes err by up to half; ``benchmarks/VOUCH.md``), so the rule leaves it out;
+  (labels' sizes err by up to half; ``benchmarks/VOUCH.md``), so the rule leaves it out and the recomputation does
+  not compute it;
 * **the ball's sigma** (``app.geometry.evidence.kept_pairs_sigma_m``): how far the ball may lie off by its views'
   own uncertainty.
 
@@ -80,13 +81,10 @@ class ViewFacts:
         name: the view's name as a reviewer reads it ("V1", the frame's name).
         detected: whether an imported detection confirms the label (:func:`detection_at_label`); None when the view
             has no prediction at all (no detector was run on it: it says nothing).
-        size_ratio: the label's box diameter over the silhouette's at the 3D ball (:func:`label_size_ratio`); None
-            for a point label or a ball behind the camera.
     """
 
     name: str
     detected: bool | None = None
-    size_ratio: float | None = None
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,6 @@ from app.geometry.ball_evidence import (
     agreeing_views,
     detection_at_ball,
     detection_at_label,
-    label_size_ratio,
 )
 from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.camera import Camera
@@ -177,7 +176,8 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
     """The evidence behind ``system``'s 3D ball ``ball`` ((3,) world metres, None without one; made of the frame id
     pairs ``kept_pairs``; its sigma ``sigma_m``, metres), what :func:`app.geometry.ball_evidence.ball_evidence` reads:
     the views of its kept pairs (named ``V1``, ``V2`` ... by their place in the system), each with whether an imported
-    detection confirms its label and its label's size over the sphere's at the ball; each other calibrated view with
+    detection confirms its label (its size at the ball's depth is left out: measured, it does not separate right balls
+    from wrong ones, ``benchmarks/VOUCH.md``); each other calibrated view with
     predictions, with the one nearest the ball's projection (``detection_at_ball``); the names of those views a
     stored label doubt names (a doubt naming no view names them all: read after the doubts are written); how many
     kept pairs' cameras agree on their players (:func:`players_disagreement` at most ``LINES_CONTRADICTED_SIGMA``);
@@ -206,8 +206,7 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
         box = f.ball_label.box if f.ball_label is not None else None
         found = detections.get(f.id)
         detected = None if not found or box is None else detection_at_label(box, [d.box for d in found])
-        ratio = None if box is None else label_size_ratio(cameras[f.id], point, box, settings.ball_diameter_m)
-        views.append(ViewFacts(name=names[f.id], detected=detected, size_ratio=ratio))
+        views.append(ViewFacts(name=names[f.id], detected=detected))
     accused = [d.frame_id for d in system.doubts if d.accuses_label]
     named = used if None in accused else {fid for fid in accused if fid in used}
     doubted = [names[f.id] for f in system.frames if f.id in named]
