@@ -128,17 +128,19 @@ def separation(balls: list[dict[str, Any]]) -> dict[str, Any]:
         r = [x for x in b["size_ratios"] if x is not None]
         return bool(r) and all(1 / (1 + t) <= x <= 1 + t for x in r)
 
+    def sees(b: dict[str, Any]) -> bool:
+        return any(o[1] <= 20.0 and abs(o[2] - 1) <= 0.5 for o in b["others"] + b["labelled_others"])
+
     tests = {
-        "3+ views": lambda b: b["views"] >= 3,
-        "detector confirms 1+": lambda b: b["detected"] >= 1,
-        "detector confirms 2+": lambda b: b["detected"] >= 2,
-        "detector confirms all": lambda b: b["detected"] >= 2 and b["detected"] == b["views"],
-        "players agree (a pair)": lambda b: b["players_pairs"] >= 1,
-        "sigma <= 0.3 m": lambda b: b["sigma_m"] is not None and b["sigma_m"] <= 0.3,
+        "3+ views in kept pairs": lambda b: b["views"] >= 3,
+        "3+ views that all agree": lambda b: b["agreeing"] >= 3,
+        "another view sees it (within tau)": sees,
+        "the detector confirms every label": lambda b: b["detected"] >= 2 and b["detected"] == b["views"],
+        "the players agree (a kept pair)": lambda b: b["players_pairs"] >= 1,
+        "pair error <= tau / 3": lambda b: b["pair_error_tau"] is not None and b["pair_error_tau"] <= 1 / 3,
         "sigma <= 0.5 m": lambda b: b["sigma_m"] is not None and b["sigma_m"] <= 0.5,
-        "sizes within 30 %": lambda b: size_ok(b, 0.3),
-        "sizes within 60 %": lambda b: size_ok(b, 0.6),
-        "no label doubt": lambda b: b["doubted"] == 0,
+        "label sizes within 50 %": lambda b: size_ok(b, 0.5),
+        "no label doubt on its views": lambda b: b["doubted"] == 0,
     }
     right = [b for b in balls if b["error_m"] <= RIGHT_M]
     wrong = [b for b in balls if b["error_m"] > WRONG_M]
