@@ -104,9 +104,10 @@ def read_balls(url: str, truth: Path) -> list[dict[str, Any]]:
                                         and f.ball_label.box is not None],
                         "doubted": len(facts.doubted),
                         "players_pairs": facts.players_pairs, "pairs": len(kept), "sigma_m": facts.sigma_m,
-                        "others": [[o.name, o.distance_1920, o.size_ratio] for o in facts.others],
+                        "others": [[o.name, o.distance_1920, o.size_ratio, o.depth_1920] for o in facts.others],
                         "pair_error_tau": facts.pair_error_tau, "agreeing": facts.agreeing,
-                        "labelled_others": [[o.name, o.distance_1920, o.size_ratio] for o in facts.labelled_others]})
+                        "labelled_others": [[o.name, o.distance_1920, o.size_ratio, o.depth_1920]
+                                            for o in facts.labelled_others]})
     return out
 
 
@@ -129,7 +130,7 @@ def separation(balls: list[dict[str, Any]]) -> dict[str, Any]:
         return bool(r) and all(1 / (1 + t) <= x <= 1 + t for x in r)
 
     def sees(b: dict[str, Any]) -> bool:
-        return any(o[1] <= 20.0 and abs(o[2] - 1) <= 0.5 for o in b["others"] + b["labelled_others"])
+        return any(o[1] <= 20.0 and abs(o[2] - 1) <= 0.5 and o[3] > 20.0 for o in b["others"] + b["labelled_others"])
 
     tests = {
         "3+ views in kept pairs": lambda b: b["views"] >= 3,

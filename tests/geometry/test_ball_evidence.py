@@ -20,6 +20,7 @@ from app.geometry.ball_evidence import (
     ViewFacts,
     agreeing_views,
     ball_evidence,
+    depth_shift_px,
     detection_at_ball,
     detection_at_label,
     label_size_ratio,
@@ -77,6 +78,8 @@ def test_another_view_whose_detection_or_label_lies_where_the_ball_projects_vouc
     wrong_size = OtherView("V3", distance_1920=5.0, size_ratio=1.8)  # a head, not the ball
     assert ball_evidence(_two(others=(far,)))[0] == TIER_UNCONFIRMED
     assert ball_evidence(_two(others=(wrong_size,)))[0] == TIER_UNCONFIRMED
+    beside = OtherView("V3", distance_1920=2.0, size_ratio=1.0, depth_1920=8.0)  # a near duplicate of V1 or V2
+    assert ball_evidence(_two(others=(beside,)))[0] == TIER_UNCONFIRMED
     loose = BallFacts(has_ball=True, views=(ViewFacts("V1"), ViewFacts("V2")), agreeing=2,
                       sigma_m=VOUCH_MAX_SIGMA_M + 0.5, others=(near,))
     tier, reasons = ball_evidence(loose)
@@ -122,3 +125,16 @@ def test_a_box_where_the_ball_projects_is_near_it_at_its_size_and_a_label_box_ha
     assert detection_at_ball(CAMERA, BALL, [], 2 * R_BALL, W) is None
     double = sil + np.array([-1.0, -1.0, 1.0, 1.0]) * (sil[2] - sil[0]) / 2
     assert label_size_ratio(CAMERA, BALL, double, 2 * R_BALL) == pytest.approx(2.0, rel=1e-6)
+
+
+def test_a_view_beside_one_of_the_balls_views_sees_a_ball_moved_along_that_views_ray_where_it_was():
+    """A near duplicate of a view of the ball sees the ball moved 1 m along that view's ray hardly move (it checks
+    nothing of the depth); a view from across the pitch sees it move by tens of pixels."""
+    main = np.array([0.0, 60.0, -15.0])
+    beside = look_at(main + np.array([0.3, 0.0, 0.0]), BALL)
+    across = look_at([70.0, 3.0, -15.0], BALL)
+    assert depth_shift_px(beside, BALL, [main], W) < 5.0
+    assert depth_shift_px(across, BALL, [main], W) > 30.0
+    assert depth_shift_px(across, BALL, [main, main + np.array([0.3, 0.0, 0.0])], W) == pytest.approx(
+        min(depth_shift_px(across, BALL, [c], W) for c in (main, main + np.array([0.3, 0.0, 0.0]))))
+    assert depth_shift_px(across, BALL, [], W) == float("inf")
