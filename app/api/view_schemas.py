@@ -3,9 +3,9 @@ and the system view of ``docs/api.md`` (the UI contract).
 
 Every answer is built by these models from the rows the services load (``app.services.curation.queue``,
 ``app.services.curation.system_page``): fields whose ORM attribute has the same meaning and name are read from it
-(``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of
-the frame's own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet:
-origin at the centre spot, z down), JaC as fractions in [0, 1].
+(``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of the frame's
+own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet: origin at the centre spot, z
+down), JaC as fractions in [0, 1].
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
+from app.api.evidence_schemas import BallEvidenceFields, evidence_fields
 from app.db.models import (
-    BallEvidence,
     BallKind,
     BallLabel,
     Calibration,
@@ -147,7 +147,7 @@ class DoubtOut(BaseModel):
                    suggestion=suggestion_json(doubt.frame_id, doubt.suggestion, doubt_provenance(doubt)))
 
 
-class SystemSummaryOut(BaseModel):
+class SystemSummaryOut(BallEvidenceFields):
     """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
     admitted views, ``app.services.derivation.recompute.update_summary``)."""
 
@@ -160,13 +160,6 @@ class SystemSummaryOut(BaseModel):
     review: ReviewOut
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma (m, its least certain direction).")
-    ball_evidence: BallEvidence = Field(
-        BallEvidence.NONE, description="What backs the 3D ball (app.geometry.ball_evidence): vouched (no label doubt, "
-        "and evidence beside its two rays agrees), unconfirmed (nothing but its views' own agreement), doubted (a "
-        "label doubt names a view it uses), none (no 3D ball).")
-    ball_evidence_reasons: list[str] = Field(
-        default_factory=list, description="Why, as short phrases (\"three views agree\", \"only two views: nothing "
-        "else checks it\"); empty without a ball.")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -189,13 +182,12 @@ class SystemSummaryOut(BaseModel):
         """A queue row from a system loaded with its game, review and triangulation, with its assignment and
         presence when given."""
         tri = system.triangulation
-        shaped = ("game", "review", "ball3d", "ball_sigma_m", "assignment", "open_by", "ball_evidence_reasons")
+        shaped = ("game", "review", "ball3d", "ball_sigma_m", "assignment", "open_by")
         return cls.model_validate({
             **{name: getattr(system, name) for name in cls.model_fields if name not in shaped},
             "game": system.game, "review": ReviewOut.of(system.review),
             "ball3d": None if tri is None else tri.ball3d, "ball_sigma_m": None if tri is None else tri.sigma_m,
             "doubt_counts": system.doubt_counts or {}, "assignment": assignment, "open_by": open_by or [],
-            "ball_evidence_reasons": list(system.ball_evidence_reasons or []),
         })
 
 
@@ -468,8 +460,7 @@ class ViewOut(_FrameFields):
         error = rep.error_px if rep is not None else None
         judged = rep is not None and tri is not None
         return {
-            **cls.frame_fields(frame), "frame_id": frame.id,
-            "pitch_lines_url": pitch_lines_url(frame),
+            **cls.frame_fields(frame), "frame_id": frame.id, "pitch_lines_url": pitch_lines_url(frame),
             "field_lines": frame.field_lines.lines if frame.field_lines is not None else {},
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
             "precise_box": frame.precise_box,
@@ -541,7 +532,7 @@ class TriangulationOut(BaseModel):
         return rule_reference_width_px(self.rule)
 
 
-class SystemView(BaseModel):
+class SystemView(BallEvidenceFields):
     """The system view of ``docs/api.md`` (the UI contract)."""
 
     id: int
@@ -555,13 +546,6 @@ class SystemView(BaseModel):
     next_id: Optional[int]
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres (triangulation.sigma_m).")
-    ball_evidence: BallEvidence = Field(
-        BallEvidence.NONE, description="What backs the 3D ball (app.geometry.ball_evidence): vouched (no label doubt, "
-        "and evidence beside its two rays agrees), unconfirmed (nothing but its views' own agreement), doubted (a "
-        "label doubt names a view it uses), none (no 3D ball).")
-    ball_evidence_reasons: list[str] = Field(
-        default_factory=list, description="Why, as short phrases (\"three views agree\", \"only two views: nothing "
-        "else checks it\"); empty without a ball.")
     triangulation: Optional[TriangulationOut]
     views: list[ViewOut]
     doubts: list[DoubtOut] = Field(description="The system's doubts, stored with its last recomputation.")
@@ -582,8 +566,7 @@ class SystemView(BaseModel):
             prev_id=page.prev_id, next_id=page.next_id, ball3d=tri.ball3d if tri is not None else None,
             triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
             ball_sigma_m=tri.sigma_m if tri is not None else None, views=[ViewOut.of(f, tri) for f in system.frames],
-            ball_evidence=system.ball_evidence, ball_evidence_reasons=list(system.ball_evidence_reasons or []),
-            doubts=[DoubtOut.of(d, names) for d in system.doubts],
+            doubts=[DoubtOut.of(d, names) for d in system.doubts], **evidence_fields(system),
             assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
         )
 

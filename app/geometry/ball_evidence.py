@@ -19,7 +19,8 @@ SoccerNet-v3D paper's triangulation, Sec. 3, checks nothing else). Evidence inde
   ball's pairs where the 3D ball projects, at a ball's size there: a third ray;
 * **the label's size at the ball's depth** (:func:`label_size_ratio`): a label's box against the silhouette of a
   0.22 m sphere at the 3D ball (Hartley and Zisserman 8.3): measured, it does not separate right balls from wrong ones
-  (labels' sizes err by up to half; ``benchmarks/VOUCH.md``), so the rule leaves it out;
+  (labels' sizes err by up to half; ``benchmarks/VOUCH.md``), so the rule leaves it out and the recomputation does
+  not compute it;
 * **the ball's sigma** (``app.geometry.evidence.kept_pairs_sigma_m``): how far the ball may lie off by its views'
   own uncertainty.
 
@@ -80,13 +81,10 @@ class ViewFacts:
         name: the view's name as a reviewer reads it ("V1", the frame's name).
         detected: whether an imported detection confirms the label (:func:`detection_at_label`); None when the view
             has no prediction at all (no detector was run on it: it says nothing).
-        size_ratio: the label's box diameter over the silhouette's at the 3D ball (:func:`label_size_ratio`); None
-            for a point label or a ball behind the camera.
     """
 
     name: str
     detected: bool | None = None
-    size_ratio: float | None = None
 
 
 @dataclass(frozen=True)
@@ -98,11 +96,15 @@ class OtherView:
         name: the view's name ("V3").
         distance_1920: its centre's distance (px at 1920 width) from the centre of the ball's silhouette there.
         size_ratio: its diameter over the silhouette's.
+        depth_1920: how far (px at 1920 width) the view sees the ball move when it moves 1 m along the ray of any
+            view of its pairs, the least over them (:func:`depth_shift_px`): a view beside one of them (a near
+            duplicate) sees a ball wrong along that ray where the right one is, and checks nothing.
     """
 
     name: str
     distance_1920: float
     size_ratio: float
+    depth_1920: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -215,6 +217,29 @@ def detection_at_ball(camera: Camera, ball: np.ndarray, detections: Sequence[Seq
     return best
 
 
+def depth_shift_px(camera: Camera, ball: np.ndarray, centres: Sequence[np.ndarray], width_px: float,
+                   shift_m: float = 1.0) -> float:
+    """How far (px at 1920 width) ``camera`` (an image ``width_px`` wide) sees the ball at ``ball`` (3,) world metres
+    move when it moves ``shift_m`` along the ray of each camera centre of ``centres`` ((3,) each, world metres), the
+    least over them (inf without centres; 0 where a moved ball falls behind ``camera``). A view whose box is to check a
+    ball made from those rays must see a ball wrong by ``shift_m`` along any of them at least this far away."""
+    b = np.asarray(ball, dtype=float)
+    here, front = camera.project(b.reshape(1, 3))
+    if not front[0]:
+        return 0.0
+    least = math.inf
+    for c in centres:
+        ray = b - np.asarray(c, dtype=float)
+        n = float(np.linalg.norm(ray))
+        if not n > 0:
+            continue
+        moved, ok = camera.project(np.stack([b + shift_m * ray / n, b - shift_m * ray / n]))
+        if not ok.all():
+            return 0.0
+        least = min(least, float(np.min(np.linalg.norm(moved - here[0], axis=1))) * 1920.0 / width_px)
+    return least
+
+
 def _names(names: Sequence[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
@@ -235,7 +260,9 @@ def ball_evidence(facts: BallFacts) -> tuple[str, list[str]]:
       2. **another view sees it there** (ball sigma at most :data:`VOUCH_MAX_SIGMA_M`): a view outside the kept
          pairs whose detection (``facts.others``) or person-placed label (``facts.labelled_others``) lies within tau
          (``facts.tau_px``, px at 1920 width, the tolerance the pairs are kept by) of where the ball projects, at a
-         ball's size there (within :data:`DETECTION_SIZE_TOLERANCE`): a third ray that meets the ball;
+         ball's size there (within :data:`DETECTION_SIZE_TOLERANCE`), and which would see the ball 1 m off along any
+         ray of the pairs farther than tau (:func:`depth_shift_px`; not a near duplicate of one of those views): a
+         third ray that meets the ball;
       3. **two views the detector and the players confirm**: every view's label confirmed by a detection
          (:func:`detection_at_label`: the label is on a ball, not on another object nor where none is), the two
          cameras agreeing on the players both see (the cameras are not off along the epipolar line), the pair's
@@ -279,8 +306,9 @@ def ball_evidence(facts: BallFacts) -> tuple[str, list[str]]:
 
 def _sees(other: OtherView, tau_px: float) -> bool:
     """Whether another view's box lies where the ball projects: within ``tau_px`` (px at 1920 width), at a ball's
-    size there."""
-    return other.distance_1920 <= tau_px and abs(other.size_ratio - 1) <= DETECTION_SIZE_TOLERANCE
+    size there, in a view that would see the ball 1 m off along any ray of its pairs beyond ``tau_px``."""
+    return (other.distance_1920 <= tau_px and abs(other.size_ratio - 1) <= DETECTION_SIZE_TOLERANCE
+            and other.depth_1920 > tau_px)
 
 
 def _detector(names: Sequence[str]) -> list[str]:

@@ -59,7 +59,8 @@ class TriangulationStatus(str, enum.Enum):
 
 class BallEvidence(str, enum.Enum):
     """What backs a system's stored 3D ball (``app.geometry.ball_evidence``, whose rule names the tiers), stored with
-    the ball so that the queue filters by it without computing it."""
+    the ball so that the queue filters by it without computing it; listed the best backed first (the queue's
+    ``ball_evidence`` order)."""
 
     #: No label doubt, and evidence independent of the two rays that make a ball agrees with it.
     VOUCHED = TIER_VOUCHED

@@ -13,10 +13,10 @@ Rows come back as ORM objects with what their answer shows loaded; the API's res
 Queue order (``sort``): ``severity`` (the work still to do first: pending systems and those returned as fixed, then
 the decided ones; within each the most severe doubt first, the stored ``System.label_severity``, then the largest
 reprojection error, then the count of label doubts), ``doubts`` (the stored count of label-accusing doubts, ties by
-the largest reprojection error), ``ball_evidence`` (what backs the 3D ball, :data:`EVIDENCE_ORDER`: vouched first,
+the largest reprojection error), ``ball_evidence`` (what backs the 3D ball in ``BallEvidence``'s order, vouched first;
 ties by the largest reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
-systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
-sort's direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
+systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the sort's
+direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
 is ``-severity``: the work still to do, worst first, as a review tool's queue puts pending work on top (a decided
 system on top would be reopened and decided again). ``name``
 orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
@@ -76,17 +76,6 @@ TO_REVIEW: tuple[ReviewStatus, ...] = (ReviewStatus.PENDING, ReviewStatus.FIXED)
 def _to_review_first() -> Any:
     """SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one (the ``severity`` order's first key)."""
     return sa.type_coerce(sa.case((System.review_status.in_(TO_REVIEW), 0), else_=1), sa.Integer)
-
-
-#: The ``ball_evidence`` order: the best backed ball first.
-EVIDENCE_ORDER: tuple[BallEvidence, ...] = (BallEvidence.VOUCHED, BallEvidence.UNCONFIRMED, BallEvidence.DOUBTED,
-                                            BallEvidence.NONE)
-
-
-def _evidence_rank() -> Any:
-    """SQL: a system's place in :data:`EVIDENCE_ORDER` (0 for a vouched ball)."""
-    return sa.type_coerce(sa.case({t.value: i for i, t in enumerate(EVIDENCE_ORDER)}, value=System.ball_evidence,
-                                  else_=len(EVIDENCE_ORDER)), sa.Integer)
 
 
 @dataclass(frozen=True)
@@ -261,8 +250,10 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
     if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
         return [_SortKey(_to_review_first()), _SortKey(System.label_severity, desc),
                 _SortKey(System.worst_error_px, desc, True), _SortKey(System.label_doubts, desc), tie]
-    if key == "ball_evidence":  # the best backed first (vouched, unconfirmed, doubted, none), ties by the error
-        return [_SortKey(_evidence_rank(), desc), _SortKey(System.worst_error_px, True, True), tie]
+    if key == "ball_evidence":  # the enum's order, the best backed first (vouched ... none); ties by the error
+        rank = sa.type_coerce(sa.case({t.value: i for i, t in enumerate(BallEvidence)}, value=System.ball_evidence,
+                                      else_=len(BallEvidence)), sa.Integer)
+        return [_SortKey(rank, desc), _SortKey(System.worst_error_px, True, True), tie]
     if key == "doubts":  # ties by the largest reprojection error
         return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]
     column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)

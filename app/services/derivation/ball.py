@@ -23,9 +23,9 @@ from app.geometry.ball_evidence import (
     OtherView,
     ViewFacts,
     agreeing_views,
+    depth_shift_px,
     detection_at_ball,
     detection_at_label,
-    label_size_ratio,
 )
 from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.camera import Camera
@@ -175,14 +175,16 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
                sigma_m: float | None, cameras: Mapping[int, Camera], settings: Settings,
                players: PairPlayersMemo | None = None, pair_error_tau: float | None = None) -> BallFacts:
     """The evidence behind ``system``'s 3D ball ``ball`` ((3,) world metres, None without one; made of the frame id
-    pairs ``kept_pairs``; its sigma ``sigma_m``, metres), what :func:`app.geometry.ball_evidence.ball_evidence` reads:
-    the views of its kept pairs (named ``V1``, ``V2`` ... by their place in the system), each with whether an imported
-    detection confirms its label and its label's size over the sphere's at the ball; each other calibrated view with
-    predictions, with the one nearest the ball's projection (``detection_at_ball``); the names of those views a
-    stored label doubt names (a doubt naming no view names them all: read after the doubts are written); how many
-    kept pairs' cameras agree on their players (:func:`players_disagreement` at most ``LINES_CONTRADICTED_SIGMA``);
-    the sigma; ``pair_error_tau``: its kept pairs' largest error over tau. ``cameras``: frame id -> its camera;
-    ``players``: the players' memo (None: the process's)."""
+    pairs ``kept_pairs``; its sigma ``sigma_m``, metres), what :func:`app.geometry.ball_evidence.ball_evidence`
+    reads: the views of its kept pairs (named ``V1``, ``V2`` ... by their place in the system), each with whether an
+    imported detection confirms its label (its size at the ball's depth is left out: measured, it does not separate
+    right balls from wrong ones, ``benchmarks/VOUCH.md``); each other calibrated view with predictions, and each
+    other view with a person-placed box (not excluded), with its box against the ball's projection
+    (``detection_at_ball``) and how far it sees the ball move 1 m along the pairs' rays (``depth_shift_px``); the
+    names of those views a stored label doubt names (a doubt naming no view names them all: read after the doubts are
+    written); how many kept pairs' cameras agree on their players (:func:`players_disagreement` at most
+    ``LINES_CONTRADICTED_SIGMA``); the sigma; ``pair_error_tau``: its kept pairs' largest error over tau.
+    ``cameras``: frame id -> its camera; ``players``: the players' memo (None: the process's)."""
     if ball is None:
         return BallFacts(has_ball=False)
     point = np.asarray(ball, dtype=float)
@@ -190,24 +192,26 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
     names = {f.id: f"V{i + 1}" for i, f in enumerate(system.frames)}
     detections = stored_detections(system, settings.max_predictions_per_frame)
     views, others, labelled = [], [], []
+    centres = [cameras[fid].C for fid in used if fid in cameras]
     for f in system.frames:
         if f.id not in used:
-            near = (None if f.id not in detections or f.id not in cameras else detection_at_ball(
+            if f.id not in cameras:
+                continue
+            near = (None if f.id not in detections else detection_at_ball(
                 cameras[f.id], point, [d.box for d in detections[f.id]], settings.ball_diameter_m, f.width))
-            if near is not None:
-                others.append(OtherView(names[f.id], *near))
             label = f.ball_label
-            if (label is not None and label.box is not None and not label.suggested and f.id in cameras
-                    and not is_excluded(f)):
-                at = detection_at_ball(cameras[f.id], point, [label.box], settings.ball_diameter_m, f.width)
-                if at is not None:
-                    labelled.append(OtherView(names[f.id], *at))
+            at = (detection_at_ball(cameras[f.id], point, [label.box], settings.ball_diameter_m, f.width)
+                  if label is not None and label.box is not None and not label.suggested and not is_excluded(f)
+                  else None)
+            if near is not None or at is not None:
+                depth = depth_shift_px(cameras[f.id], point, centres, f.width)
+                others += [OtherView(names[f.id], *near, depth_1920=depth)] if near is not None else []
+                labelled += [OtherView(names[f.id], *at, depth_1920=depth)] if at is not None else []
             continue
         box = f.ball_label.box if f.ball_label is not None else None
         found = detections.get(f.id)
         detected = None if not found or box is None else detection_at_label(box, [d.box for d in found])
-        ratio = None if box is None else label_size_ratio(cameras[f.id], point, box, settings.ball_diameter_m)
-        views.append(ViewFacts(name=names[f.id], detected=detected, size_ratio=ratio))
+        views.append(ViewFacts(name=names[f.id], detected=detected))
     accused = [d.frame_id for d in system.doubts if d.accuses_label]
     named = used if None in accused else {fid for fid in accused if fid in used}
     doubted = [names[f.id] for f in system.frames if f.id in named]

@@ -305,13 +305,12 @@ def rig_game_of(system: System) -> int | None:
     return system.game_id if uses_rig(system) and system.game_id is not None else None
 
 
-def update_summary(system: System, tri: Triangulation, facts: BallFacts) -> None:
+def update_summary(system: System, tri: Triangulation, facts: BallFacts | None = None) -> None:
     """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
     model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
     ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.pair_error.error_above_tau``; and what
     backs its 3D ball (``ball_evidence`` and its reasons, :func:`app.geometry.ball_evidence.ball_evidence` of
-    ``facts``)."""
-    tier, reasons = ball_evidence(facts)
+    ``facts``; None: left as stored)."""
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
@@ -327,8 +326,10 @@ def update_summary(system: System, tri: Triangulation, facts: BallFacts) -> None
         "worst_error_px": max((error for _, error in labelled), default=None),
         "views_flagged": sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals),
         "views_above_tau": sum(error_above_tau(error, f.width, tri.tau_px, tri.rule) for f, error in labelled),
-        "ball_evidence": BallEvidence(tier), "ball_evidence_reasons": reasons,
     })
+    if facts is not None:
+        tier, reasons = ball_evidence(facts)
+        put_values(system, {"ball_evidence": BallEvidence(tier), "ball_evidence_reasons": reasons})
 
 
 def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:
