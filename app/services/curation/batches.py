@@ -80,7 +80,8 @@ def sample_size(confidence: float, max_wrong_share: float, total: int) -> int:
     """How many of ``total`` systems the zero-acceptance plan samples: ``min(total, ceil(ln(1 - c) / ln(1 - p)))``
     (module docstring; Hanley and Lippman-Hand 1983).
 
-    A quotient that is an integer but for rounding (``ln 0.25 / ln 0.5``) is that integer.
+    A quotient that is an integer but for rounding (``ln 0.25 / ln 0.5``) is that integer; a share too small to show
+    in a sample short of the whole batch (``5e-324``) samples all of it.
 
     >>> sample_size(0.95, 0.05, 240), sample_size(0.95, 0.05, 12), sample_size(0.75, 0.5, 100)
     (59, 12, 2)
@@ -90,8 +91,13 @@ def sample_size(confidence: float, max_wrong_share: float, total: int) -> int:
     """
     _check_share(confidence, "confidence")
     _check_share(max_wrong_share, "max_wrong_share")
-    n = math.ceil(math.log1p(-confidence) / math.log1p(-max_wrong_share) - 1e-9)
-    return min(total, max(n, 1))
+    per_draw = math.log1p(-max_wrong_share)
+    if per_draw == 0.0:  # a share too small for a double to tell 1 - p from 1: no sample short of all shows it
+        return total
+    needed = math.log1p(-confidence) / per_draw
+    if not math.isfinite(needed) or needed >= total:
+        return total
+    return min(total, max(math.ceil(needed - 1e-9), 1))
 
 
 def _check_share(value: float, field: str) -> None:

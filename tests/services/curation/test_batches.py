@@ -24,11 +24,12 @@ pytestmark = pytest.mark.engine
 
 @pytest.mark.parametrize(("c", "p", "total", "n"), [
     (0.95, 0.05, 240, 59), (0.95, 0.05, 59, 59), (0.95, 0.05, 12, 12), (0.99, 0.01, 10_000, 459),
-    (0.75, 0.5, 100, 2), (0.5, 0.5, 100, 1), (0.95, 0.05, 0, 0)])
+    (0.75, 0.5, 100, 2), (0.5, 0.5, 100, 1), (0.95, 0.05, 0, 0), (0.95, 5e-324, 240, 240), (0.95, 1e-12, 240, 240),
+    (1 - 1e-16, 0.5, 240, 53)])
 def test_the_sample_is_the_zero_acceptance_plans_size(c: float, p: float, total: int, n: int) -> None:
     assert batches.sample_size(c, p, total) == n
     if 0 < n < total:  # the plan's promise: n draws all right are as likely as 1 - c at most, n - 1 more likely
-        assert (1 - p) ** n <= 1 - c + 1e-12 < (1 - p) ** (n - 1)
+        assert (1 - p) ** n <= (1 - c) * (1 + 1e-9) < (1 - p) ** (n - 1)
 
 
 @pytest.mark.parametrize("bad", [0.0, 1.0, -0.1, 1.5, float("nan")])
