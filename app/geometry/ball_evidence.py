@@ -117,7 +117,8 @@ class BallFacts:
         doubted: the names of those views a label doubt of the system names (a doubt naming no view names them
             all).
         players_pairs: kept pairs whose two cameras place the players both views see in agreement (at least three
-            shared players).
+            shared players); the service counts them only where the detector confirms every label (rule 3, the one
+            rule that reads them), 0 elsewhere.
         sigma_m: the ball's sigma (metres along its least certain direction), None when unknown.
         others: the calibrated views outside the kept pairs that have a prediction, each with the one nearest the
             ball's projection.
