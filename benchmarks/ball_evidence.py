@@ -130,7 +130,7 @@ def separation(balls: list[dict[str, Any]]) -> dict[str, Any]:
         return bool(r) and all(1 / (1 + t) <= x <= 1 + t for x in r)
 
     def sees(b: dict[str, Any]) -> bool:
-        return any(o[1] <= 20.0 and abs(o[2] - 1) <= 0.5 and o[3] > 20.0 for o in b["others"] + b["labelled_others"])
+        return any(o[1] <= min(20.0, o[3] / 2) and abs(o[2] - 1) <= 0.5 for o in b["others"] + b["labelled_others"])
 
     tests = {
         "3+ views in kept pairs": lambda b: b["views"] >= 3,

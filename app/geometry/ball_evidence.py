@@ -117,7 +117,8 @@ class BallFacts:
         doubted: the names of those views a label doubt of the system names (a doubt naming no view names them
             all).
         players_pairs: kept pairs whose two cameras place the players both views see in agreement (at least three
-            shared players).
+            shared players); the service counts them only where the detector confirms every label (rule 3, the one
+            rule that reads them), 0 elsewhere.
         sigma_m: the ball's sigma (metres along its least certain direction), None when unknown.
         others: the calibrated views outside the kept pairs that have a prediction, each with the one nearest the
             ball's projection.
@@ -260,9 +261,9 @@ def ball_evidence(facts: BallFacts) -> tuple[str, list[str]]:
       2. **another view sees it there** (ball sigma at most :data:`VOUCH_MAX_SIGMA_M`): a view outside the kept
          pairs whose detection (``facts.others``) or person-placed label (``facts.labelled_others``) lies within tau
          (``facts.tau_px``, px at 1920 width, the tolerance the pairs are kept by) of where the ball projects, at a
-         ball's size there (within :data:`DETECTION_SIZE_TOLERANCE`), and which would see the ball 1 m off along any
-         ray of the pairs farther than tau (:func:`depth_shift_px`; not a near duplicate of one of those views): a
-         third ray that meets the ball;
+         ball's size there (within :data:`DETECTION_SIZE_TOLERANCE`), and nearer than where a ball 1 m off along a
+         ray of the pairs would project (the midpoint, :func:`depth_shift_px`: a near duplicate of one of those
+         views sees both at the same place and vouches for nothing): a third ray that meets the ball;
       3. **two views the detector and the players confirm**: every view's label confirmed by a detection
          (:func:`detection_at_label`: the label is on a ball, not on another object nor where none is), the two
          cameras agreeing on the players both see (the cameras are not off along the epipolar line), the pair's
@@ -305,10 +306,12 @@ def ball_evidence(facts: BallFacts) -> tuple[str, list[str]]:
 
 
 def _sees(other: OtherView, tau_px: float) -> bool:
-    """Whether another view's box lies where the ball projects: within ``tau_px`` (px at 1920 width), at a ball's
-    size there, in a view that would see the ball 1 m off along any ray of its pairs beyond ``tau_px``."""
-    return (other.distance_1920 <= tau_px and abs(other.size_ratio - 1) <= DETECTION_SIZE_TOLERANCE
-            and other.depth_1920 > tau_px)
+    """Whether another view's box lies where the ball projects, at a ball's size there: within ``tau_px`` (px at 1920
+    width) and nearer than half of ``depth_1920``, i.e. nearer where the ball projects than where a ball 1 m off along
+    a ray of its pairs would (the midpoint between the two; a near duplicate of one of the ball's views, which sees
+    both at the same place, never passes)."""
+    return (other.distance_1920 <= min(tau_px, other.depth_1920 / 2)
+            and abs(other.size_ratio - 1) <= DETECTION_SIZE_TOLERANCE)
 
 
 def _detector(names: Sequence[str]) -> list[str]:

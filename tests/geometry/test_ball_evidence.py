@@ -78,8 +78,11 @@ def test_another_view_whose_detection_or_label_lies_where_the_ball_projects_vouc
     wrong_size = OtherView("V3", distance_1920=5.0, size_ratio=1.8)  # a head, not the ball
     assert ball_evidence(_two(others=(far,)))[0] == TIER_UNCONFIRMED
     assert ball_evidence(_two(others=(wrong_size,)))[0] == TIER_UNCONFIRMED
-    beside = OtherView("V3", distance_1920=2.0, size_ratio=1.0, depth_1920=8.0)  # a near duplicate of V1 or V2
+    # a near duplicate of V1 or V2: a ball 1 m off along its ray would project 3 px away, nearer the box than 2 px
+    beside = OtherView("V3", distance_1920=2.0, size_ratio=1.0, depth_1920=3.0)
     assert ball_evidence(_two(others=(beside,)))[0] == TIER_UNCONFIRMED
+    sideways = OtherView("V3", distance_1920=2.0, size_ratio=1.0, depth_1920=8.0)  # 1 m off: 8 px away, 2 is nearer
+    assert ball_evidence(_two(others=(sideways,)))[0] == TIER_VOUCHED
     loose = BallFacts(has_ball=True, views=(ViewFacts("V1"), ViewFacts("V2")), agreeing=2,
                       sigma_m=VOUCH_MAX_SIGMA_M + 0.5, others=(near,))
     tier, reasons = ball_evidence(loose)

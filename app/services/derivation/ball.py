@@ -183,8 +183,9 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
     (``detection_at_ball``) and how far it sees the ball move 1 m along the pairs' rays (``depth_shift_px``); the
     names of those views a stored label doubt names (a doubt naming no view names them all: read after the doubts are
     written); how many kept pairs' cameras agree on their players (:func:`players_disagreement` at most
-    ``LINES_CONTRADICTED_SIGMA``); the sigma; ``pair_error_tau``: its kept pairs' largest error over tau.
-    ``cameras``: frame id -> its camera; ``players``: the players' memo (None: the process's)."""
+    ``LINES_CONTRADICTED_SIGMA``; counted only where the detector confirms every label, 0 elsewhere); the sigma;
+    ``pair_error_tau``: its kept pairs' largest error over tau. ``cameras``: frame id -> its camera; ``players``: the
+    players' memo (None: the process's)."""
     if ball is None:
         return BallFacts(has_ball=False)
     point = np.asarray(ball, dtype=float)
@@ -215,8 +216,12 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
     accused = [d.frame_id for d in system.doubts if d.accuses_label]
     named = used if None in accused else {fid for fid in accused if fid in used}
     doubted = [names[f.id] for f in system.frames if f.id in named]
-    figure = players_disagreement(system, cameras, players)
-    agree = sum(1 for a, b in kept_pairs if (got := figure(a, b)) is not None and got <= LINES_CONTRADICTED_SIGMA)
+    agree = 0
+    if views and all(v.detected for v in views):
+        # the rule reads the players only where the detector confirms every label (its rule 3), and reading each
+        # view's players is most of what the evidence costs (benchmarks/VOUCH.md): counted there only
+        figure = players_disagreement(system, cameras, players)
+        agree = sum(1 for a, b in kept_pairs if (got := figure(a, b)) is not None and got <= LINES_CONTRADICTED_SIGMA)
     return BallFacts(has_ball=True, views=tuple(views), doubted=tuple(doubted), players_pairs=agree, sigma_m=sigma_m,
                      others=tuple(others), pair_error_tau=pair_error_tau, agreeing=agreeing_views(kept_pairs),
                      labelled_others=tuple(labelled), tau_px=settings.triangulation_tau_px)
