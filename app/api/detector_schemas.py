@@ -100,4 +100,6 @@ class StatsOut(BaseModel):
     admission: AdmissionOut
     stale_systems: int = Field(description="Systems computed with other settings (a changed V3D_PROFILE): stale "
                                            "until `v3d recompute`.")
+    ball_evidence: dict[str, int] = Field(description="Systems per tier of what backs their 3D ball: vouched, "
+                                          "unconfirmed, doubted, none (app.geometry.ball_evidence).")
     distributions: dict[str, HistogramOut]

@@ -17,6 +17,7 @@ from app.api.routes import (
     audit,
     auth,
     backups,
+    batches,
     comments,
     detectors,
     exports,
@@ -47,6 +48,7 @@ _protected = APIRouter(dependencies=PROTECTED, responses={
                                             "Retry-After header's seconds."},
 })
 for _module in (auth, users, games, annotators, systems, assignments, comments, handoffs, frames, imports, exports,
-                jobs, backups, detectors, issia, audit, pitch, passes, releases, predictions):
+                jobs, backups, detectors, issia, audit, pitch, passes, batches, releases,
+                predictions):
     _protected.include_router(_module.router)
 api_router.include_router(_protected)

@@ -26,7 +26,7 @@ from pydantic import (
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from app.core.names import check_name
-from app.db.models import ReviewStatus
+from app.db.models import BallEvidence, ReviewStatus
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS
 from app.services.accounts.users import ASSIGNEE_ME
@@ -259,6 +259,10 @@ class QueueQuery(BaseModel):
     camera: Optional[Literal["rig_assisted", "player_assisted"]] = Field(
         None, description="Only systems with a view whose camera was placed so (a calibration flag: at a rig "
         "position, by its players).")
+    ball_evidence: Optional[BallEvidence] = Field(
+        None, description="Only systems whose 3D ball is in this tier: vouched (evidence beside its two rays agrees, "
+        "no label doubt), unconfirmed (nothing else checks it), doubted (a label doubt names one of its views), none "
+        "(no 3D ball).")
     sort: SystemSort = Field(DEFAULT_SORT, description="Order; a leading '-' means descending. Missing values last.")
 
     def filters(self, me: Optional[str] = None) -> SystemFilters:
@@ -270,7 +274,8 @@ class QueueQuery(BaseModel):
         return SystemFilters(game_id=self.game_id, status=self.status, jac_min=self.jac_min,
                              jac_max=self.jac_max, error_min=self.error_min, error_max=self.error_max,
                              sigma_min=self.sigma_min, sigma_max=self.sigma_max,
-                             doubt=self.doubt, assignee=assignee, camera=self.camera)
+                             doubt=self.doubt, assignee=assignee, camera=self.camera,
+                             ball_evidence=self.ball_evidence)
 
     @model_validator(mode="after")
     def _ranges(self) -> "QueueQuery":

@@ -3,9 +3,9 @@ and the system view of ``docs/api.md`` (the UI contract).
 
 Every answer is built by these models from the rows the services load (``app.services.curation.queue``,
 ``app.services.curation.system_page``): fields whose ORM attribute has the same meaning and name are read from it
-(``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of
-the frame's own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet:
-origin at the centre spot, z down), JaC as fractions in [0, 1].
+(``from_attributes``), the others by each model's ``of(...)``; no dict is built by hand. Units: pixels of the frame's
+own image (continuous coordinates, origin at the top-left corner), world metres (SoccerNet: origin at the centre spot, z
+down), JaC as fractions in [0, 1].
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
+from app.api.evidence_schemas import BallEvidenceFields, evidence_fields
 from app.db.models import (
     BallKind,
     BallLabel,
@@ -146,7 +147,7 @@ class DoubtOut(BaseModel):
                    suggestion=suggestion_json(doubt.frame_id, doubt.suggestion, doubt_provenance(doubt)))
 
 
-class SystemSummaryOut(BaseModel):
+class SystemSummaryOut(BallEvidenceFields):
     """A row of the review queue: figures stored by the system's last recomputation (aggregates over the
     admitted views, ``app.services.derivation.recompute.update_summary``)."""
 
@@ -459,8 +460,7 @@ class ViewOut(_FrameFields):
         error = rep.error_px if rep is not None else None
         judged = rep is not None and tri is not None
         return {
-            **cls.frame_fields(frame), "frame_id": frame.id,
-            "pitch_lines_url": pitch_lines_url(frame),
+            **cls.frame_fields(frame), "frame_id": frame.id, "pitch_lines_url": pitch_lines_url(frame),
             "field_lines": frame.field_lines.lines if frame.field_lines is not None else {},
             "optimised_box": OptimisedBoxOut.of(frame.optimised_box),
             "precise_box": frame.precise_box,
@@ -532,7 +532,7 @@ class TriangulationOut(BaseModel):
         return rule_reference_width_px(self.rule)
 
 
-class SystemView(BaseModel):
+class SystemView(BallEvidenceFields):
     """The system view of ``docs/api.md`` (the UI contract)."""
 
     id: int
@@ -566,7 +566,7 @@ class SystemView(BaseModel):
             prev_id=page.prev_id, next_id=page.next_id, ball3d=tri.ball3d if tri is not None else None,
             triangulation=TriangulationOut.model_validate(tri) if tri is not None else None,
             ball_sigma_m=tri.sigma_m if tri is not None else None, views=[ViewOut.of(f, tri) for f in system.frames],
-            doubts=[DoubtOut.of(d, names) for d in system.doubts],
+            doubts=[DoubtOut.of(d, names) for d in system.doubts], **evidence_fields(system),
             assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
         )
 

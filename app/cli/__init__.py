@@ -15,6 +15,7 @@ def main() -> None:
     and what it accepts, status 2."""
     from app.cli import (  # noqa: F401  # each module registers its commands
         backup,  # v3d backup, v3d restore
+        batches,  # v3d batches create|show|accept|undo
         calibration,  # v3d calibrate
         datasets,  # v3d import ..., v3d export ...
         detectors,  # v3d export yolo|coco, v3d evaluate monocular|sensitivity

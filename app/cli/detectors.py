@@ -213,6 +213,7 @@ def stats_cmd(
                        f"calibrated, {c['admitted_images']} admitted")
     if stats["stale_systems"]:
         typer.echo(f"{stats['stale_systems']} system(s) were computed with other settings: stale until `v3d recompute`")
+    typer.echo("3D balls by evidence: " + ", ".join(f"{n} {tier}" for tier, n in stats["ball_evidence"].items()))
     typer.echo("systems kept by JaC threshold: " + ", ".join(
         f"{r['threshold']:.2f}: {r['systems_kept']}" for r in stats["jac_sweep"][::4]))
     if json_out is not None:

@@ -5,12 +5,12 @@ The root command's ``--server`` names the server (:func:`use_server`); each comm
 :func:`remote_client` for a client (None: run locally, as before) and does its work through it: ``import soccernet-v3``
 and ``import predictions`` (the folder, zip or file uploaded), ``export FORMAT OUT`` and ``release export NAME FORMAT
 OUT`` (the export job's zip downloaded to the system's temporary folder and unpacked under OUT, as the local command
-writes it), ``release create|list|show|diff``, ``users list|add|disable``, ``jobs list|wait``, ``stats`` and ``stats
-annotators``, each with progress bars on standard error. A remote command writes nothing in its working folder but
-the OUT it was given. Any other command named with ``--server`` is refused (:func:`refuse_remote`, exit 2): it runs on
-the server's machine only. A refusal of the server (401, 403, 404, 409, 413, 422) prints ``Error: <the server's
-words>`` and exits 2; a failed job exits as the local command does (2 for invalid input, else 1), as do a server that
-does not answer and a wait past its ``--timeout`` (1).
+writes it), ``release create|list|show|diff``, ``batches create|show|accept|undo``, ``users list|add|disable``,
+``jobs list|wait``, ``stats`` and ``stats annotators``, each with progress bars on standard error. A remote command
+writes nothing in its working folder but the OUT it was given. Any other command named with ``--server`` is refused
+(:func:`refuse_remote`, exit 2): it runs on the server's machine only. A refusal of the server (401, 403, 404, 409,
+413, 422) prints ``Error: <the server's words>`` and exits 2; a failed job exits as the local command does (2 for
+invalid input, else 1), as do a server that does not answer and a wait past its ``--timeout`` (1).
 """
 from __future__ import annotations
 
@@ -31,7 +31,8 @@ if TYPE_CHECKING:
 
 #: The commands ``--server`` runs, as the refusal of any other names them.
 REMOTE_COMMANDS = ("import soccernet-v3", "import predictions", "export FORMAT OUT", "release create|list|show|diff|"
-                   "export", "users list|add|disable", "jobs list|wait", "stats", "stats annotators")
+                   "export", "batches create|show|accept|undo", "users list|add|disable", "jobs list|wait", "stats",
+                   "stats annotators")
 #: The environment variable of the API token a remote command sends (the examples' name too).
 TOKEN_ENV = "V3D_TOKEN"
 

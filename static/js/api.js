@@ -329,3 +329,24 @@ export function listPasses(params = {}) {
 export function getPass(passId) {
   return request("GET", `/api/passes/${encodeURIComponent(passId)}`);
 }
+
+/** POST /api/batches {filter, confidence, max_wrong_share}: a batch of the queue's pending vouched systems with the
+ * server's random sample; answers {id, systems, sample, plan, state, stops, ...}. Reviewers. */
+export function createBatch(filter, confidence = 0.95, maxWrongShare = 0.05) {
+  return request("POST", "/api/batches", { filter, confidence, max_wrong_share: maxWrongShare });
+}
+
+/** GET /api/batches/{id}: a batch and, while open, what stops its accept now (`stops`: [{system_id, words, final}]). */
+export function getBatch(batchId) {
+  return request("GET", `/api/batches/${encodeURIComponent(batchId)}`);
+}
+
+/** POST /api/batches/{id}/accept: accept the batch's unsampled systems; answers {accepted} (409 naming what stops it). */
+export function acceptBatch(batchId) {
+  return request("POST", `/api/batches/${encodeURIComponent(batchId)}/accept`);
+}
+
+/** POST /api/batches/{id}/pass: the caller's review pass over the batch's sample (the pass, as POST /api/passes). */
+export function batchPass(batchId) {
+  return request("POST", `/api/batches/${encodeURIComponent(batchId)}/pass`);
+}

@@ -5,7 +5,8 @@
 // pass's order; a fix never reorders it. When nothing pending is left after the system, the page says so with the pass's counts
 // (data-testid="pass-finished") and a way back to the queue.
 
-import { ApiError, startPass, visitPass, passPlace, listPasses, getPass } from "./api.js";
+import { ApiError, startPass, visitPass, passPlace, listPasses, getPass, batchPass } from "./api.js";
+import { BATCH_PARAM, batchIdOf, showBatchEnd } from "./batch.js";
 import { el } from "./format.js";
 import { readState, apiFilters, DEFAULT_SORT } from "./queuestate.js";
 
@@ -56,6 +57,7 @@ export function wantsNewPass(search = location.search) {
 
 export class ReviewPass {
   id = passIdOf();
+  batchId = batchIdOf(); // a pass over a batch's sample (batch.js): counted "sample 3 of 59", its end the batch's
   place = null; // the shown system's place in the pass (GET .../place), null until known
   systemId = null; // the system `place` is of
 
@@ -73,6 +75,10 @@ export class ReviewPass {
    * (unchanged when it had one). A pass the server no longer knows (404) is begun again. */
   async visit(sys, search) {
     const begin = async () => {
+      if (this.batchId !== null) { // the sample's pass: the server's list, never the queue's
+        this.id = (await batchPass(this.batchId)).id;
+        return;
+      }
       const { filter, sort } = queueOf(search);
       this.id = (await startPass(filter, sort, sys.id, wantsNewPass(search))).id;
     };
@@ -100,16 +106,21 @@ export class ReviewPass {
     else if (p.index !== null && systemId === p.next_id) index = p.index + 1;
     else if (p.index !== null && systemId === p.prev_id) index = p.index - 1;
     const where = index === null ? `… of ${p.total}` : `${index + 1} of ${p.total}`;
-    this.progress.textContent = `pass ${where} · ${toDecide(p.counts)} pending`;
+    this.progress.textContent = `${this.word()} ${where} · ${toDecide(p.counts)} pending`;
   }
 
   note(systemId, place) {
     this.systemId = systemId;
     this.place = place;
-    const where = place.index === null ? "outside the pass" : `${place.index + 1} of ${place.total}`;
-    this.progress.textContent = `pass ${where} · ${toDecide(place.counts)} pending`;
+    const where = place.index === null ? `outside the ${this.word()}` : `${place.index + 1} of ${place.total}`;
+    this.progress.textContent = `${this.word()} ${where} · ${toDecide(place.counts)} pending`;
     this.progress.title = `review pass ${place.pass_id}: your decisions in it: ${describeCounts(place.counts)} (skipped: still pending)`;
     if (!place.finished || place.index === null) this.hideFinished();
+  }
+
+  /** What the bar calls the pass: "sample" over a batch's sample, else "pass". */
+  word() {
+    return this.batchId !== null ? "sample" : "pass";
   }
 
   /** The place of `systemId`, read now (a decision just made counts): null without a pass. */
@@ -132,6 +143,7 @@ export class ReviewPass {
   /** Say that nothing pending is left after the shown system: the counts, back to the queue, and the
    * systems stepped over, if any. */
   showFinished(place, queueUrl) {
+    if (this.batchId !== null) return showBatchEnd(this.panel, this.batchId, queueUrl); // accept the others, or not
     const skipped = place.first_pending_id;
     this.panel.replaceChildren(
       el("strong", {}, "Pass finished: "),
@@ -163,15 +175,17 @@ export async function resumeLink(container) {
     const { id, position } = open;
     const full = await getPass(id);
     const at = full.systems[Math.min(position, full.systems.length - 1)];
-    const q = new URLSearchParams(Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
+    const sample = open.filter.batch_id !== undefined; // a batch's sample (batch.js): no queue's filters nor sort
+    const q = new URLSearchParams(sample ? [[BATCH_PARAM, String(open.filter.batch_id)]]
+      : Object.entries(open.filter).map(([k, v]) => [k === "game_id" ? "game" : k, String(v)]));
     for (const k of ["jac_min", "jac_max"]) if (q.has(k)) q.set(k, String(Number(q.get(k)) * 100));
-    if (open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
+    if (!sample && open.sort !== DEFAULT_SORT) q.set("sort", open.sort);
     q.set(PASS_PARAM, String(id));
     container.replaceChildren(el("a", { href: `/systems/${at}?${q}`, "data-testid": "resume-pass",
       title: `resume your review pass of ${new Date(open.created_at).toLocaleString()} at ${position + 1} of ${open.total}: `
         + `${open.counts.skipped} pending; ${describeCounts(open.counts)}` },
     // short: the header stays one line with the user's name and Log out at 1366 px
-    `resume pass ${position + 1}/${open.total}`));
+    `resume ${sample ? "sample" : "pass"} ${position + 1}/${open.total}`));
     container.hidden = false;
   } catch {
     // only an offer: the queue works without it

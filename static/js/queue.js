@@ -21,6 +21,7 @@ import { FILTERS, DEFAULT_SORT, readState, stateQuery, apiFilters } from "./queu
 import { el, fmt, fmtJac, isNum, isTyping, showError, clearError, STATUSES, STATUS_LABEL, DOUBT_LABEL, toast } from "./format.js";
 import { WORDS, chip, chipClass, chipLegend, heightText } from "./words.js";
 import { resumeLink } from "./pass.js";
+import { mountBatchButton } from "./batch.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
 const PAGE_SIZE = 50;
@@ -114,6 +115,7 @@ class QueuePage {
     const resume = el("span", { class: "resume-pass", "data-testid": "resume", hidden: true });
     $("progress-text").after(resume);
     resumeLink(resume);
+    mountBatchButton($("batch")); // reviewers: accept the vouched after a random sample (batch.js)
     // an import or a recompute that ends while the page is open changes the queue: reload it
     mountExports($("exports")); // admins only: every export as a job with its download
     mountWorkCounts($("work-counts")); // To fix (and To re-review): what the team's loop sent to this person
@@ -249,7 +251,10 @@ class QueuePage {
           el("td", { class: "num", title: Array.isArray(s.ball3d) ? "x, y on the pitch (m); height above the grass" : null },
             Array.isArray(s.ball3d) && s.ball3d.every(isNum)
               ? `${s.ball3d[0].toFixed(1)}, ${s.ball3d[1].toFixed(1)} · ${heightText(s.ball3d[2])}`
-              : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view")),
+              : el("span", { class: "muted" }, s.views_total > 1 ? "none" : "single view"),
+            s.ball_evidence && s.ball_evidence !== "none"
+              ? el("div", { class: `evidence ${s.ball_evidence}`, "data-testid": "row-evidence", title: (s.ball_evidence_reasons || []).join("; ") }, s.ball_evidence)
+              : null),
           el("td", { "data-testid": "row-doubts" }, rowDoubts(s)),
         );
       }),

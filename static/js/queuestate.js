@@ -3,7 +3,7 @@
 // a filtered queue moves (prev / next, after a decision) within that same queue.
 
 export const FILTERS = ["status", "game", "jac_min", "jac_max", "error_min", "error_max", "sigma_min", "sigma_max",
-  "doubt", "camera", "assignee", "sort"];
+  "doubt", "camera", "ball_evidence", "assignee", "sort"];
 /** The API's default order: the work to do first (pending, fixed), the most severe doubt first. */
 export const DEFAULT_SORT = "-severity";
 
@@ -52,6 +52,7 @@ export function apiFilters(state) {
     sigma_max: state.sigma_max,
     doubt: state.doubt,
     camera: state.camera, // a calibration source flag (placed by players, at a rig position)
+    ball_evidence: state.ball_evidence, // what backs the 3D ball: vouched, unconfirmed, doubted, none
     assignee: state.assignee, // a user's name, "me" or "none" (work assignment)
     sort: state.sort,
   };

@@ -159,6 +159,21 @@ function countsTable(rows) {
     el("td", { class: "num", text: r.images ? `${((100 * r.admitted_images) / r.images).toFixed(1)}` : "–" })));
 }
 
+// What each tier of ball_evidence means (app.geometry.ball_evidence); the API counts them in this order.
+const TIER_MEANING = {
+  vouched: "no label doubt, and evidence beside its two rays agrees (a third view, the detector)",
+  unconfirmed: "it rests on its views' own agreement: nothing else checks it",
+  doubted: "a label doubt names a view it uses",
+  none: "no 3D ball",
+};
+
+function evidenceTable(counts) {
+  return Object.entries(counts).map(([tier, n]) => el("tr", { dataset: { testid: `evidence-${tier}` } },
+    el("td", { text: tier }),
+    el("td", { class: "num", dataset: { testid: "systems" }, text: int(n) }),
+    el("td", { text: TIER_MEANING[tier] || "" })));
+}
+
 const HISTOGRAMS = {
   jac: { xTitle: "JaC at the admission gamma (%)", scale: 100, digits: 1 },
   pair_reprojection_error_px: { xTitle: "pairwise reprojection error e_ij (px)", digits: 1 },
@@ -169,6 +184,7 @@ const HISTOGRAMS = {
 function render(stats) {
   const rows = countRows(stats.kinds);
   document.querySelector("[data-testid=counts] tbody").replaceChildren(...countsTable(rows));
+  document.querySelector("[data-testid=evidence] tbody").replaceChildren(...evidenceTable(stats.ball_evidence));
   document.querySelector("[data-testid=plot-counts]").replaceChildren(countsSvg(rows.filter((r) => r.split !== "all")));
   const series = Object.entries(stats.jac_sweep_by_kind).map(([kind, sweep]) => [kind, sweep, stats.kinds[kind].systems]);
   document.querySelector("[data-testid=plot-sweep]").replaceChildren(sweepSvg(series, stats.admission));

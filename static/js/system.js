@@ -329,7 +329,9 @@ class SystemPage {
       await this.passReady;
       const fixing = status === "fixed";
       const place = fixing ? null : await this.pass.fresh(sys.id).catch(() => null);
-      const next = fixing ? await nextToFix(sys.id) : place ? place.next_pending_id : current.next_id;
+      // a sampled system not accepted ends its batch (batch.js): the page stays and says so
+      const endsBatch = place !== null && this.pass.batchId !== null && status !== "accepted";
+      const next = fixing ? await nextToFix(sys.id) : endsBatch ? null : place ? place.next_pending_id : current.next_id;
       this.busy = false;
       const said = decisionWords(status, answer); // a needs fix says to whom it went
       if (next !== null && next !== undefined) {
@@ -337,7 +339,8 @@ class SystemPage {
         await this.load(next, true);
       } else {
         if (place) this.pass.showFinished(place, this.queueUrl());
-        const last = fixing ? NOTHING_LEFT_TO_FIX : place ? LAST_OF_PASS : "That was the last system of this queue.";
+        const last = fixing ? NOTHING_LEFT_TO_FIX : endsBatch ? BATCH_ENDS : place ? LAST_OF_PASS
+          : "That was the last system of this queue.";
         toast(`${sys.name}: ${said}. ${last}`);
         if (this.system === current && etag) current.etag = etag; // the page stays: its next decision needs it
         if (this.system === current) { // the views' parts with no decision of their own read the system's now
@@ -543,6 +546,8 @@ async function nextToFix(doneId) {
   return (work?.to_fix_ids || []).find((id) => id !== doneId) ?? null;
 }
 
+/** The toast of a sampled system's decision that is not an accept: its batch ends (batch.js). */
+export const BATCH_ENDS = "The batch ends: a sampled system was not accepted.";
 /** The toast of the last decision of a pass (nothing pending left after the system). */
 export const LAST_OF_PASS = "Nothing pending is left in this pass.";
 

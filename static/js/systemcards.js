@@ -60,12 +60,32 @@ export function renderBall(sys) {
   const sigma = sys.ball_sigma_m;
   $("ball3d-sigma").hidden = !(ok && isNum(sigma));
   $("ball3d-sigma").textContent = ok && isNum(sigma) ? `3D ball ± ${sigma.toFixed(2)} m` : "";
+  renderEvidence(sys);
   const tri = sys.triangulation || {};
   $("triangulation-status").textContent = tri.status ? `· ${chip("triangulation", tri.status)}` : "";
   const kept = (tri.pairs || []).filter((p) => p.kept).length;
   $("triangulation-rule").textContent =
     `${tauText(tri.tau_px)} (${tri.rule ? chip("rule", tri.rule) : "?"}), baseline ≥ ${fmt(tri.min_baseline_m, 1)} m; ` +
     `${kept} of ${(tri.pairs || []).length} pairs kept.`;
+}
+
+// What backs the 3D ball (app.geometry.ball_evidence): the tier the server stored with it and why, in its words.
+const TIERS = {
+  vouched: { text: "vouched", cls: "accepted", means: "no label doubt, and evidence beside its two rays agrees" },
+  unconfirmed: { text: "unconfirmed", cls: "needs_fix", means: "it rests on its views' own agreement: nothing else checks it" },
+  doubted: { text: "doubted", cls: "rejected", means: "a label doubt names a view it uses" },
+};
+
+function renderEvidence(sys) {
+  const tier = TIERS[sys.ball_evidence];
+  $("ball-evidence").hidden = !tier;
+  const badge = $("ball-evidence-tier");
+  badge.className = `badge ${tier ? tier.cls : ""}`;
+  badge.textContent = tier ? tier.text : "";
+  badge.title = tier ? tier.means : "";
+  $("ball-evidence").dataset.tier = sys.ball_evidence || "none";
+  $("ball-evidence-reasons").replaceChildren(...(tier ? sys.ball_evidence_reasons || [] : [])
+    .map((r) => el("li", { "data-testid": "ball-evidence-reason" }, String(r))));
 }
 
 export function renderPairs(sys) {

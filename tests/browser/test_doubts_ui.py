@@ -49,6 +49,31 @@ def test_queue_counts_filters_and_sorts_by_doubt_kind(page, artifacts):
     assert {int(rows.nth(i).get_attribute("data-id")) for i in range(rows.count())} == wanted
 
 
+def test_queue_filters_and_sorts_by_what_backs_the_3d_ball(page):
+    """Each row says its ball's tier under the ball; "3D ball backed: vouched" lists exactly the vouched systems (the
+    API's), each saying so; "best backed first" orders the rows as the API's ``sort=ball_evidence``."""
+    everything = _api(page, "/api/systems?limit=500")["items"]
+    vouched = {s["id"] for s in everything if s["ball_evidence"] == "vouched"}
+    assert vouched and len(vouched) < len(everything), "the demo data should have vouched and other balls"
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    page.select_option(tid("filter-ball-evidence"), "vouched")
+    page.wait_for_url(re.compile(r"ball_evidence=vouched"))
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
+                           arg=min(len(vouched), 50))
+    rows = page.locator(tid("queue-row"))
+    assert {int(rows.nth(i).get_attribute("data-id")) for i in range(rows.count())} <= vouched
+    tiers = page.eval_on_selector_all(tid("row-evidence"), "(es) => es.map((e) => e.textContent)")
+    assert tiers == ["vouched"] * rows.count()
+    page.select_option(tid("filter-ball-evidence"), "")
+    page.select_option(tid("sort"), "ball_evidence")
+    page.wait_for_url(re.compile(r"sort=ball_evidence"))
+    order = [str(s["id"]) for s in _api(page, "/api/systems?sort=ball_evidence&limit=50")["items"]]
+    page.wait_for_function("(first) => document.querySelector('[data-testid=queue-row]')?.dataset.id === first",
+                           arg=order[0])
+    assert [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()] == order
+
+
 def test_missing_ball_is_fixed_with_its_key(page, artifacts):
     system, doubt = _system_with(page, "ball_missing")
     k = next(i for i, v in enumerate(system["views"]) if v["frame_id"] == doubt["frame_id"])

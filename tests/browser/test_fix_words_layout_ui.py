@@ -163,6 +163,13 @@ def test_no_raw_code_on_the_review_pages_and_every_chip_has_its_legend(page, art
             sigma = page.locator(tid("ball3d-sigma")).inner_text()
             assert re.fullmatch(r"3D ball ± \d+\.\d\d m", sigma), sigma
             assert float(sigma.split()[3]) == pytest.approx(item["ball_sigma_m"], abs=0.006)
+            # what backs it: the tier and its reasons as the queue row gives them
+            assert page.locator(tid("ball-evidence-tier")).inner_text() == item["ball_evidence"]
+            shown_reasons = page.eval_on_selector_all(tid("ball-evidence-reason"),
+                                                      "(rs) => rs.map((r) => r.textContent)")
+            assert shown_reasons == item["ball_evidence_reasons"] and shown_reasons, item["name"]
+        else:
+            assert page.locator(tid("ball-evidence")).is_hidden()
         page.keyboard.press("?")
         page.locator(tid("keys-help")).wait_for(state="visible")
         legend = _legend(page, tid("keys-help"))

@@ -135,6 +135,11 @@ def test_the_statistics_page_draws_the_stats_of_the_api(page, artifacts):
         for split, c in k["splits"].items():
             images = page.locator(tid(f"count-{kind}-{split}")).locator(tid("images"))
             assert images.text_content() == f"{c['images']:,}"
+    # the systems per tier of what backs their 3D ball, every tier in the API's order
+    assert page.eval_on_selector_all("[data-testid=evidence] tbody tr", "(rs) => rs.map((r) => r.dataset.testid)") == [
+        f"evidence-{tier}" for tier in stats["ball_evidence"]]
+    for tier, n in stats["ball_evidence"].items():
+        assert page.locator(tid(f"evidence-{tier}")).locator(tid("systems")).text_content() == f"{n:,}"
     # the counts plot: one segment per non-empty class of images of each kind and split
     segments = sum(1 for k in stats["kinds"].values() for c in k["splits"].values()
                    for n in (c["admitted_images"], c["calibrated_images"] - c["admitted_images"],

@@ -217,6 +217,11 @@ def test_stats_of_the_dev_set(dev):
         assert len(d[name]["edges"]) == 21
     assert stats["jac_sweep_by_kind"] == {"soccernet-v3": sweep}
     assert stats["admission"] == {"gamma": 0.005, "jac_min": 0.75}
+    # every system in one tier of what backs its 3D ball, said on the console too
+    tiers = stats["ball_evidence"]
+    assert list(tiers) == ["vouched", "unconfirmed", "doubted", "none"] and sum(tiers.values()) == k["systems"]
+    assert tiers["vouched"] > 0 and tiers["unconfirmed"] > 0
+    assert "3D balls by evidence: " + ", ".join(f"{n} {t}" for t, n in tiers.items()) in res.output
 
 
 def test_stats_yield_counts_the_3d_balls_under_both_rules_against_the_truth(dev, shared_dir: Path):

@@ -39,6 +39,7 @@ from app.db.models.accounts import ApiToken, RateLimitCounter, ServerSecret, Use
 from app.db.models.base import JAC_COLUMNS, NAMING_CONVENTION, Base
 from app.db.models.derived import BallReprojection, Calibration, Doubt, OptimisedBox, Triangulation, TriangulationPair
 from app.db.models.enums import (
+    BallEvidence,
     BallKind,
     CalibrationSource,
     CalibrationStatus,
@@ -53,12 +54,20 @@ from app.db.models.labels import BallLabel, FieldLineAnnotation, Frame, Game, Pl
 from app.db.models.operations import AuditEntry, AuditState, Job
 from app.db.models.predictions import Prediction
 from app.db.models.releases import Release, ReleaseDocument, ReleaseGame, ReleaseSystem
-from app.db.models.review import ReviewComment, ReviewDecision, ReviewHandoff, ReviewPass, SystemPresence
+from app.db.models.review import (
+    ReviewBatch,
+    ReviewComment,
+    ReviewDecision,
+    ReviewHandoff,
+    ReviewPass,
+    SystemPresence,
+)
 
 __all__ = [
     "Base",
     "JAC_COLUMNS",
     "NAMING_CONVENTION",
+    "BallEvidence",
     "BallKind",
     "CalibrationSource",
     "CalibrationStatus",
@@ -84,6 +93,7 @@ __all__ = [
     "ReleaseDocument",
     "ReleaseGame",
     "ReleaseSystem",
+    "ReviewBatch",
     "ReviewComment",
     "ReviewDecision",
     "ReviewHandoff",

@@ -1,10 +1,12 @@
 """The enums the models store by value: system kinds, frame roles, calibration sources and statuses, ball
-kinds, triangulation statuses, job states, review statuses, user roles (the one home of each; the API's
-``Literal``s derive from them).
+kinds, triangulation statuses, the evidence behind a 3D ball, job states, review statuses, user roles (the one home
+of each; the API's ``Literal``s derive from them).
 """
 from __future__ import annotations
 
 import enum
+
+from app.geometry.ball_evidence import TIER_DOUBTED, TIER_NONE, TIER_UNCONFIRMED, TIER_VOUCHED
 
 
 # ----- enums ---------------------------------------------------------------------------------------
@@ -53,6 +55,21 @@ class TriangulationStatus(str, enum.Enum):
     TRIANGULATED = "triangulated"  # at least one pair kept; ``ball3d`` is the mean of the kept points
     INSUFFICIENT_VIEWS = "insufficient_views"  # fewer than two admitted views with a ball label
     NO_PAIR_KEPT = "no_pair_kept"  # every pair dropped (tau, baseline, cheirality or degenerate)
+
+
+class BallEvidence(str, enum.Enum):
+    """What backs a system's stored 3D ball (``app.geometry.ball_evidence``, whose rule names the tiers), stored with
+    the ball so that the queue filters by it without computing it; listed the best backed first (the queue's
+    ``ball_evidence`` order)."""
+
+    #: No label doubt, and evidence independent of the two rays that make a ball agrees with it.
+    VOUCHED = TIER_VOUCHED
+    #: It rests on the views' own agreement; nothing else checks it (typically two views).
+    UNCONFIRMED = TIER_UNCONFIRMED
+    #: A label doubt of the system names a view the ball uses.
+    DOUBTED = TIER_DOUBTED
+    #: The system has no 3D ball.
+    NONE = TIER_NONE
 
 
 class JobState(str, enum.Enum):

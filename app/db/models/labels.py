@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
 from app.db.models.base import Base
-from app.db.models.enums import BallKind, FrameRole, ReviewStatus, SystemKind
+from app.db.models.enums import BallEvidence, BallKind, FrameRole, ReviewStatus, SystemKind
 from app.db.types import enum_by_value, utcnow
 
 if TYPE_CHECKING:  # the relationships name these; the registry resolves them at run time
@@ -77,6 +77,9 @@ class System(Base):
         sa.Index("ix_systems_review_status_label_severity_worst_error_px", "review_status", "label_severity",
                  "worst_error_px"),
         sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
+        # the queue's ``ball_evidence=`` filter and sort within a review status (the pending vouched systems a batch
+        # of accepted-after-a-sample draws from) as an index seek
+        sa.Index("ix_systems_review_status_ball_evidence", "review_status", "ball_evidence"),
         # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
         # order within a game as an index walk
         sa.Index("ix_systems_game_id_name_length_name", "game_id", sa.text("length(name)"), "name"),
@@ -112,6 +115,13 @@ class System(Base):
     #: The largest ``app.geometry.doubts.LABEL_KIND_SEVERITY`` of its doubts (0 without a label doubt), written with
     #: them: the queue's default order reads it from the row instead of aggregating every system's doubts per page.
     label_severity: Mapped[int] = mapped_column(default=0, server_default="0")
+    #: What backs the system's 3D ball (``app.geometry.ball_evidence.ball_evidence``): vouched, unconfirmed, doubted,
+    #: or none without a ball; written with the ball and its doubts, so that the queue filters and sorts by it.
+    ball_evidence: Mapped[BallEvidence] = mapped_column(
+        enum_by_value(BallEvidence, "system_ball_evidence"), default=BallEvidence.NONE, server_default="none")
+    #: Why it is in its tier, as short phrases a reviewer reads ("three views agree", "only two views: nothing else
+    #: checks it"); empty without a ball.
+    ball_evidence_reasons: Mapped[list[str]] = mapped_column(default=list, server_default="[]")
     views_total: Mapped[int] = mapped_column(default=0)
     views_calibrated: Mapped[int] = mapped_column(default=0)
     views_admitted: Mapped[int] = mapped_column(default=0)

@@ -50,6 +50,9 @@ class ReviewDecision(Base):
     calibration_decided_at: Mapped[Optional[datetime]]
     #: Why ``calibration_status`` is pending again (an edit of the field lines recalibrated the view).
     calibration_reset_reason: Mapped[Optional[str]] = mapped_column(sa.Text)
+    #: System decisions only: the batch (:class:`ReviewBatch`) that accepted the system after a sample, None when a
+    #: person made the decision (every person's decision clears it). A plain id: batches are never deleted.
+    batch_id: Mapped[Optional[int]]
 
     system: Mapped[Optional[System]] = relationship(back_populates="review", foreign_keys=[system_id])
     frame: Mapped[Optional[Frame]] = relationship(back_populates="review", foreign_keys=[frame_id])
@@ -129,3 +132,32 @@ class ReviewComment(Base):
     resolved: Mapped[bool] = mapped_column(default=False)
     resolved_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
     resolved_at: Mapped[Optional[datetime]]
+
+
+class ReviewBatch(Base):
+    """A batch of vouched systems accepted after a random sample (``app.services.curation.batches``).
+
+    ``created_by`` made it at ``created_at`` from the queue ``filters`` (``SystemFilters`` fields) with the sampling
+    plan's ``confidence`` and ``max_wrong_share`` (fractions); ``system_ids`` are the pending vouched systems the
+    filters selected then, in id order, ``versions`` their ``System.version`` then (same order), ``sample_ids`` the
+    random subset a person reviews. ``state``: ``open``, ``accepted`` (``accepted_ids``: the systems it accepted, by
+    ``decided_by`` at ``decided_at``), ``refused`` (``refusal``: the words naming each system that stopped it; a
+    batch refused once stays refused) or ``undone`` (its acceptances put back to pending, ``undone_at``)."""
+
+    __tablename__ = "review_batches"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    created_by: Mapped[str] = mapped_column(sa.String(200))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    filters: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    confidence: Mapped[float]
+    max_wrong_share: Mapped[float]
+    system_ids: Mapped[list[Any]] = mapped_column(default=list)
+    versions: Mapped[list[Any]] = mapped_column(default=list)
+    sample_ids: Mapped[list[Any]] = mapped_column(default=list)
+    state: Mapped[str] = mapped_column(sa.String(20), default="open")
+    refusal: Mapped[Optional[str]] = mapped_column(sa.Text)
+    decided_by: Mapped[Optional[str]] = mapped_column(sa.String(200))
+    decided_at: Mapped[Optional[datetime]]
+    accepted_ids: Mapped[Optional[list[Any]]]
+    undone_at: Mapped[Optional[datetime]]

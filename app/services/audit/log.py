@@ -145,6 +145,44 @@ def record(session: Session, *, actor: Optional[str], action: str, frame: Option
     return entry
 
 
+@dataclass(frozen=True)
+class SystemChange:
+    """One system's change in a write of many (:func:`record_many`): its id, game id, the version the write gives it,
+    its part's state before and after (small states: a decision's), and the entry it undoes (None)."""
+
+    system_id: int
+    game_id: int
+    system_version: int
+    before: dict[str, Any]
+    after: dict[str, Any]
+    reverts_id: Optional[int] = None
+
+
+def record_many(session: Session, *, actor: Optional[str], action: str, changes: list[SystemChange]) -> None:
+    """One entry per change of a write that changes many systems at once (a batch's acceptance after a sample,
+    ``app.services.curation.batches``), inserted by one statement in the caller's transaction, each as
+    :func:`record` would write it (its summary, its states inline, the version the write gives its system). A state
+    must be small (:data:`LARGE_STATE_BYTES`): a decision's is.
+
+    Raises:
+        ValueError: an action outside :data:`ACTIONS`, or a state too large to be stored inline.
+    """
+    if action not in ACTIONS:
+        raise ValueError(f"unknown audit action {action!r}")
+    now, who = utcnow(), actor or local_actor()
+    rows = []
+    for c in changes:
+        before, after = json_safe(c.before), json_safe(c.after)
+        if max(len(canonical_json(before)), len(canonical_json(after))) >= LARGE_STATE_BYTES:
+            raise ValueError(f"system {c.system_id}: a state too large to be recorded with many others")
+        rows.append({"at": now, "actor": who, "action": action, "system_id": c.system_id, "game_id": c.game_id,
+                     "system_version": c.system_version, "reverts_id": c.reverts_id,
+                     "before_inline": before, "after_inline": after,
+                     "summary": summarize(action, before, after, reverts_id=c.reverts_id)[:SUMMARY_MAX]})
+    if rows:
+        session.execute(sa.insert(AuditEntry), rows)
+
+
 #: States (before / after) whose canonical JSON is at least this long (bytes) are stored once, compressed, in
 #: ``audit_states`` (a ball label or a decision stays inline; a frame's field lines, 61-71 points in the real sets,
 #: are about 2-3 KB).

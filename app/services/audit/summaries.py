@@ -165,10 +165,16 @@ def lines_words(before: Any, after: Any) -> str:
 
 
 def _decision_words(state: Any, what: str) -> str:
+    """A decision's state in words, naming the batch that accepted it after a sample.
+
+    >>> _decision_words({"status": "accepted", "batch_id": 4}, "system")
+    'system accepted in batch 4 after a sample'
+    """
     r = state if isinstance(state, Mapping) else {}
     status = str(r.get("status") or "pending")
     comment = r.get("comment") or ""
-    return f"{what} {STATUS_WORDS.get(status, status)}" + (f" ({comment[:80]})" if comment else "")
+    batch = f" in batch {r['batch_id']} after a sample" if isinstance(r.get("batch_id"), int) else ""
+    return f"{what} {STATUS_WORDS.get(status, status)}{batch}" + (f" ({comment[:80]})" if comment else "")
 
 
 def import_words(before: Any, after: Any) -> str:

@@ -88,6 +88,7 @@ def decide_review(session: Session, *, system_id: int | None = None, frame_id: i
         review.comment = comment
         review.decided_at = utcnow()
         review.reset_reason = None
+        review.batch_id = None  # a person's decision (or its undo): no batch's
         if isinstance(subject, System):
             handoff.after_decision(session, subject, status, actor=actor, note=comment, return_to=return_to,
                                    required=revert is None and undo is None)

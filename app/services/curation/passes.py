@@ -23,6 +23,7 @@ transaction; one user's passes cannot grow the database without bound.
 from __future__ import annotations
 
 import dataclasses
+import enum
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -70,13 +71,13 @@ class PassPlace:
 
 
 def filters_json(filters: SystemFilters) -> dict[str, Any]:
-    """The queue filters as stored in a pass: the fields of :class:`SystemFilters` that are set (the status
-    by value)."""
+    """The queue filters as stored in a pass: the fields of :class:`SystemFilters` that are set (an enum, the status
+    or the ball evidence, by value)."""
     out = {}
     for f in dataclasses.fields(filters):
         value = getattr(filters, f.name)
         if value is not None:
-            out[f.name] = value.value if isinstance(value, ReviewStatus) else value
+            out[f.name] = value.value if isinstance(value, enum.Enum) else value
     return out
 
 
@@ -107,6 +108,24 @@ def start_pass(session: Session, user: str, filters: SystemFilters = ALL_SYSTEMS
     with write_unit(session):
         rp = ReviewPass(user_name=user, filters=stored, sort=sort, system_ids=ids,
                         position=ids.index(system_id) if system_id in ids else 0)
+        session.add(rp)
+        session.flush()
+        _drop_beyond(session, user, keep, rp.id)
+    return rp
+
+
+def start_listed_pass(session: Session, user: str, filters: dict[str, Any], sort: str, ids: list[int],
+                      keep: int = 50) -> ReviewPass:
+    """A pass of ``user`` over a list of systems no queue orders (a batch's sample, ``app.services.curation.batches``),
+    stored with ``filters`` and ``sort`` naming where the list comes from: the user's newest pass of the same
+    ``filters`` and ``sort``, else a new one over ``ids`` in their order (committed; the user's passes beyond the newest
+    ``keep`` dropped, as :func:`start_pass` does)."""
+    for rp in session.scalars(sa.select(ReviewPass).where(ReviewPass.user_name == user, ReviewPass.sort == sort)
+                              .order_by(ReviewPass.id.desc()).limit(20)):
+        if rp.filters == filters and rp.system_ids == ids:
+            return rp
+    with write_unit(session):
+        rp = ReviewPass(user_name=user, filters=filters, sort=sort, system_ids=ids, position=0)
         session.add(rp)
         session.flush()
         _drop_beyond(session, user, keep, rp.id)

@@ -13,14 +13,16 @@ Rows come back as ORM objects with what their answer shows loaded; the API's res
 Queue order (``sort``): ``severity`` (the work still to do first: pending systems and those returned as fixed, then
 the decided ones; within each the most severe doubt first, the stored ``System.label_severity``, then the largest
 reprojection error, then the count of label doubts), ``doubts`` (the stored count of label-accusing doubts, ties by
-the largest reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
-systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the
-sort's direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
+the largest reprojection error), ``ball_evidence`` (what backs the 3D ball in ``BallEvidence``'s order, vouched first;
+ties by the largest reprojection error), ``worst_error``, ``lowest_jac`` or ``name``, descending with a leading ``-``;
+systems without the sort value (no 3D ball, no admitted view) always come last, ties break by id (in the sort's
+direction, so a descending sort is its index scanned backwards). The default, :data:`DEFAULT_SORT`,
 is ``-severity``: the work still to do, worst first, as a review tool's queue puts pending work on top (a decided
 system on top would be reopened and decided again). ``name``
 orders by game, then system name with numeric names in numeric order (2.png before 10.png). The ``doubt``
 filter keeps systems with a doubt of one kind (or any label-accusing one); doubts and their counts are
-stored by the recomputation (``app.services.derivation.doubts``), never computed here.
+stored by the recomputation (``app.services.derivation.doubts``), never computed here; so is each ball's tier, which
+the ``ball_evidence`` filter reads (``System.ball_evidence``, indexed by review status).
 
 Pages: by ``offset`` (links and scripts that jump to page N) or by cursor (``after`` / ``before``: the
 sort key values of a page's last / first row, :func:`encode_cursor`). Either way the page is read as
@@ -46,6 +48,7 @@ from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
 
 from app.core.errors import InvalidInputError
 from app.db.models import (
+    BallEvidence,
     BallReprojection,
     Calibration,
     CalibrationStatus,
@@ -61,7 +64,7 @@ from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.services.accounts.users import ASSIGNEE_NONE
 
 SystemSort = Literal["severity", "-severity", "doubts", "-doubts", "worst_error",
-                      "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+                      "-worst_error", "lowest_jac", "-lowest_jac", "name", "-name", "ball_evidence", "-ball_evidence"]
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
 #: The review queue's default order: pending (and fixed, to re-review) systems first, the most severe first.
 DEFAULT_SORT: SystemSort = "-severity"
@@ -99,6 +102,8 @@ class SystemFilters:
     #: Only systems with a view whose camera carries this flag (one of
     #: ``app.geometry.calibration.result.SOURCE_FLAGS``: placed at a rig position, placed by its players).
     camera: Optional[str] = None
+    #: Only systems whose 3D ball is in this tier (the stored ``System.ball_evidence``, ``app.geometry.ball_evidence``).
+    ball_evidence: Optional[BallEvidence] = None
 
 
 @dataclass(frozen=True)
@@ -182,6 +187,8 @@ def _system_conditions(filters: SystemFilters, with_status: bool = True) -> list
         view = sa.orm.aliased(Frame)  # its own name: the queue's statement may join the frames already
         conds.append(sa.exists(sa.select(Calibration.frame_id).join(view, view.id == Calibration.frame_id).where(
             view.system_id == System.id, sa.cast(Calibration.flags, sa.Text).like(f'%"{filters.camera}"%'))))
+    if filters.ball_evidence is not None:
+        conds.append(System.ball_evidence == filters.ball_evidence)
     if filters.assignee == ASSIGNEE_NONE:
         conds.append(System.assignee_id.is_(None))
     elif filters.assignee is not None:  # the index on assignee_id, the user's id looked up once
@@ -243,6 +250,10 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
     if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
         return [_SortKey(_to_review_first()), _SortKey(System.label_severity, desc),
                 _SortKey(System.worst_error_px, desc, True), _SortKey(System.label_doubts, desc), tie]
+    if key == "ball_evidence":  # the enum's order, the best backed first (vouched ... none); ties by the error
+        rank = sa.type_coerce(sa.case({t.value: i for i, t in enumerate(BallEvidence)}, value=System.ball_evidence,
+                                      else_=len(BallEvidence)), sa.Integer)
+        return [_SortKey(rank, desc), _SortKey(System.worst_error_px, True, True), tie]
     if key == "doubts":  # ties by the largest reprojection error
         return [_SortKey(System.label_doubts, desc), _SortKey(System.worst_error_px, True, True), tie]
     column = {"worst_error": System.worst_error_px, "lowest_jac": System.lowest_jac}.get(key)

@@ -177,6 +177,7 @@ def _system_back_to_pending(session: Session, system: System, reason: str, actor
     assert decision is not None  # the callers reset a decided decision only
     decision.status = ReviewStatus.PENDING
     decision.reset_reason = reason
+    decision.batch_id = None  # pending: no batch's acceptance any more
     decision.decided_at = now
     audit.record(session, actor=actor, action="system.review", system=system, before=before,
                  after=review_state(system))

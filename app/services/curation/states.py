@@ -42,10 +42,15 @@ def excluded_state(frame: Frame) -> dict[str, Any]:
 
 
 def review_state(subject: Frame | System) -> dict[str, Any]:
-    """``{"review": {"status", "comment"}}`` of a frame or a system (pending without a decision)."""
+    """``{"review": {"status", "comment"}}`` of a frame or a system (pending without a decision), and ``batch_id``
+    for a system a batch accepted after a sample (``app.services.curation.batches``; absent for a person's
+    decision)."""
     review = subject.review
-    return {"review": {"status": review.status.value if review else ReviewStatus.PENDING.value,
-                       "comment": review.comment if review else ""}}
+    state: dict[str, Any] = {"status": review.status.value if review else ReviewStatus.PENDING.value,
+             "comment": review.comment if review else ""}
+    if review is not None and review.batch_id is not None:
+        state["batch_id"] = review.batch_id
+    return {"review": state}
 
 
 def system_review_state(system: System) -> dict[str, Any]:

@@ -14,8 +14,19 @@ from __future__ import annotations
 import math
 from typing import Any, Callable, Mapping, Sequence, cast
 
+import numpy as np
+
 from app.core.config import Settings
 from app.db.models import CalibrationStatus, Frame, System
+from app.geometry.ball_evidence import (
+    BallFacts,
+    OtherView,
+    ViewFacts,
+    agreeing_views,
+    depth_shift_px,
+    detection_at_ball,
+    detection_at_label,
+)
 from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.camera import Camera
 from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
@@ -33,6 +44,7 @@ from app.services.derivation.doubts import (
     doubt_settings,
     fitted_frames,
     is_excluded,
+    stored_detections,
 )
 
 
@@ -60,11 +72,23 @@ def players_disagree(system: System, cameras: Mapping[Any, Camera],
                      memo: PairPlayersMemo | None = None) -> Callable[[Any, Any], bool]:
     """View ids ``(a, b)`` of ``system``'s ``observations`` -> whether their cameras put the players both views see
     (class and ID, ``Frame.players``) farther apart than ``LINES_CONTRADICTED_SIGMA`` standard deviations
-    (``app.geometry.calibration.players.pair_players_disagreement``; at least three shared players), what
-    :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for. ``cameras``: view id -> its camera, for
-    every view asked about; ``memo``: where each pair's figure comes from (None: the process's,
-    ``cameras.PAIR_PLAYERS``, which answers the pairs an edit left as they were). Each view's foot points are read
-    once, on the first pair that asks."""
+    (:func:`players_disagreement`), what :func:`app.geometry.evidence.judge_by_evidence` leaves a pair out for."""
+    figure = players_disagreement(system, cameras, memo)
+
+    def disagree(a: Any, b: Any) -> bool:
+        got = figure(a, b)
+        return got is not None and got > LINES_CONTRADICTED_SIGMA
+
+    return disagree
+
+
+def players_disagreement(system: System, cameras: Mapping[Any, Camera],
+                         memo: PairPlayersMemo | None = None) -> Callable[[Any, Any], float | None]:
+    """View ids ``(a, b)`` of ``system`` -> how far apart their cameras put the players both views see (class and
+    ID, ``Frame.players``), in standard deviations (``app.geometry.calibration.players.pair_players_disagreement``),
+    None with fewer than three shared players. ``cameras``: view id -> its camera, for every view asked about;
+    ``memo``: where each pair's figure comes from (None: the process's, ``cameras.PAIR_PLAYERS``, which answers the
+    pairs an edit left as they were). Each view's foot points are read once, on the first pair that asks."""
     ask = memo if memo is not None else shared.PAIR_PLAYERS
     frames = {f.id: f for f in system.frames}
     feet: dict[Any, dict] = {}
@@ -75,13 +99,12 @@ def players_disagree(system: System, cameras: Mapping[Any, Camera],
             feet[view_id] = feet_of(frame_players(f), f.width, f.height)
         return feet[view_id]
 
-    def disagree(a: Any, b: Any) -> bool:
+    def figure(a: Any, b: Any) -> float | None:
         fa, fb = feet_of_view(a), feet_of_view(b)
         fr_a, fr_b = frames[a], frames[b]
-        got = ask(cameras[a], fa, (fr_a.width, fr_a.height), cameras[b], fb, (fr_b.width, fr_b.height))
-        return got is not None and got > LINES_CONTRADICTED_SIGMA
+        return ask(cameras[a], fa, (fr_a.width, fr_a.height), cameras[b], fb, (fr_b.width, fr_b.height))
 
-    return disagree
+    return figure
 
 
 def view_sigmas_px(system: System, observations: Sequence[BallObservation], settings: Settings,
@@ -146,3 +169,59 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     if result.point is None:
         return result, None
     return result, kept_pairs_sigma_m(observations, result.pairs, result.point, sigmas)
+
+
+def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_pairs: Sequence[tuple[int, int]],
+               sigma_m: float | None, cameras: Mapping[int, Camera], settings: Settings,
+               players: PairPlayersMemo | None = None, pair_error_tau: float | None = None) -> BallFacts:
+    """The evidence behind ``system``'s 3D ball ``ball`` ((3,) world metres, None without one; made of the frame id
+    pairs ``kept_pairs``; its sigma ``sigma_m``, metres), what :func:`app.geometry.ball_evidence.ball_evidence`
+    reads: the views of its kept pairs (named ``V1``, ``V2`` ... by their place in the system), each with whether an
+    imported detection confirms its label (its size at the ball's depth is left out: measured, it does not separate
+    right balls from wrong ones, ``benchmarks/VOUCH.md``); each other calibrated view with predictions, and each
+    other view with a person-placed box (not excluded), with its box against the ball's projection
+    (``detection_at_ball``) and how far it sees the ball move 1 m along the pairs' rays (``depth_shift_px``); the
+    names of those views a stored label doubt names (a doubt naming no view names them all: read after the doubts are
+    written); how many kept pairs' cameras agree on their players (:func:`players_disagreement` at most
+    ``LINES_CONTRADICTED_SIGMA``; counted only where the detector confirms every label, 0 elsewhere); the sigma;
+    ``pair_error_tau``: its kept pairs' largest error over tau. ``cameras``: frame id -> its camera; ``players``: the
+    players' memo (None: the process's)."""
+    if ball is None:
+        return BallFacts(has_ball=False)
+    point = np.asarray(ball, dtype=float)
+    used = {v for pair in kept_pairs for v in pair}
+    names = {f.id: f"V{i + 1}" for i, f in enumerate(system.frames)}
+    detections = stored_detections(system, settings.max_predictions_per_frame)
+    views, others, labelled = [], [], []
+    centres = [cameras[fid].C for fid in used if fid in cameras]
+    for f in system.frames:
+        if f.id not in used:
+            if f.id not in cameras:
+                continue
+            near = (None if f.id not in detections else detection_at_ball(
+                cameras[f.id], point, [d.box for d in detections[f.id]], settings.ball_diameter_m, f.width))
+            label = f.ball_label
+            at = (detection_at_ball(cameras[f.id], point, [label.box], settings.ball_diameter_m, f.width)
+                  if label is not None and label.box is not None and not label.suggested and not is_excluded(f)
+                  else None)
+            if near is not None or at is not None:
+                depth = depth_shift_px(cameras[f.id], point, centres, f.width)
+                others += [OtherView(names[f.id], *near, depth_1920=depth)] if near is not None else []
+                labelled += [OtherView(names[f.id], *at, depth_1920=depth)] if at is not None else []
+            continue
+        box = f.ball_label.box if f.ball_label is not None else None
+        found = detections.get(f.id)
+        detected = None if not found or box is None else detection_at_label(box, [d.box for d in found])
+        views.append(ViewFacts(name=names[f.id], detected=detected))
+    accused = [d.frame_id for d in system.doubts if d.accuses_label]
+    named = used if None in accused else {fid for fid in accused if fid in used}
+    doubted = [names[f.id] for f in system.frames if f.id in named]
+    agree = 0
+    if views and all(v.detected for v in views):
+        # the rule reads the players only where the detector confirms every label (its rule 3), and reading each
+        # view's players is most of what the evidence costs (benchmarks/VOUCH.md): counted there only
+        figure = players_disagreement(system, cameras, players)
+        agree = sum(1 for a, b in kept_pairs if (got := figure(a, b)) is not None and got <= LINES_CONTRADICTED_SIGMA)
+    return BallFacts(has_ball=True, views=tuple(views), doubted=tuple(doubted), players_pairs=agree, sigma_m=sigma_m,
+                     others=tuple(others), pair_error_tau=pair_error_tau, agreeing=agreeing_views(kept_pairs),
+                     labelled_others=tuple(labelled), tau_px=settings.triangulation_tau_px)

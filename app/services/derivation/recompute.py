@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence, cast
 
 import numpy as np
 from sqlalchemy import func, select
@@ -43,6 +43,7 @@ from app.core.progress import Progress
 from app.datasets.records import CalibrationFields
 from app.db import scope
 from app.db.models import (
+    BallEvidence,
     BallReprojection,
     CalibrationSource,
     CalibrationStatus,
@@ -56,6 +57,7 @@ from app.db.models import (
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.geometry.ball import optimise_box
+from app.geometry.ball_evidence import RULE_VERSION, BallFacts, ball_evidence
 from app.geometry.calibration.result import MIRROR_FLAG, PLAYERS_FLAG
 from app.geometry.calibration.rig import estimate_rig
 from app.geometry.camera import Camera
@@ -73,7 +75,7 @@ from app.services.calibration.players import place_frame_by_players, players_mir
 from app.services.calibration.priors import stored_camera_prior, wants_prior_retry, with_prior_refit
 from app.services.calibration.rigs import game_rig, rig_centres, rig_rows, uses_rig, wants_rig_retry, with_rig_retry
 from app.services.derivation import cameras as shared
-from app.services.derivation.ball import judged_by_evidence, system_ball, takes_part
+from app.services.derivation.ball import ball_facts, judged_by_evidence, system_ball, takes_part
 from app.services.derivation.cameras import PairPlayersMemo, mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
     update_doubts,
@@ -87,7 +89,8 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 7  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs weighed;
+DERIVED_VERSION = 7 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
+# weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
 # evidence, settings.ball_rule), a placement's doubts say its error once confirmed, as the view will show it, and a
@@ -239,7 +242,11 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     update_doubts(system, settings, cameras, geometry, weighed, after_confirming)
     update_label_distances(system, settings, weighed, geometry)
-    update_summary(system, tri)
+    kept = [p for p in result.pairs if p.kept]
+    errors = [p.error / result.tau_px for p in kept if p.error is not None and result.tau_px]
+    pairs = [(cast(int, p.view_a), cast(int, p.view_b)) for p in kept]
+    update_summary(system, tri, ball_facts(system, result.point, pairs, sigma_m, cameras, settings, players_memo,
+                                           max(errors, default=None)))
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
@@ -298,10 +305,12 @@ def rig_game_of(system: System) -> int | None:
     return system.game_id if uses_rig(system) and system.game_id is not None else None
 
 
-def update_summary(system: System, tri: Triangulation) -> None:
+def update_summary(system: System, tri: Triangulation, facts: BallFacts | None = None) -> None:
     """Store the review queue's figures of ``system`` (``System.views_total`` ... ``views_above_tau``,
     model docstring) from its current frames and triangulation: aggregates over the **admitted** views,
-    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.pair_error.error_above_tau``."""
+    ``views_flagged`` over every view, ``views_above_tau`` by ``app.geometry.pair_error.error_above_tau``; and what
+    backs its 3D ball (``ball_evidence`` and its reasons, :func:`app.geometry.ball_evidence.ball_evidence` of
+    ``facts``; None: left as stored)."""
     frames = list(system.frames)
     cals = [f.calibration for f in frames]
     admitted = [f for f in frames if f.calibration is not None and f.calibration.admitted]
@@ -318,6 +327,9 @@ def update_summary(system: System, tri: Triangulation) -> None:
         "views_flagged": sum(c is not None and MIRROR_FLAG in (c.flags or []) for c in cals),
         "views_above_tau": sum(error_above_tau(error, f.width, tri.tau_px, tri.rule) for f, error in labelled),
     })
+    if facts is not None:
+        tier, reasons = ball_evidence(facts)
+        put_values(system, {"ball_evidence": BallEvidence(tier), "ball_evidence_reasons": reasons})
 
 
 def refresh_stale_systems(session: Session, settings: Settings, progress: Progress | None = None) -> int:

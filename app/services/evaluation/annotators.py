@@ -18,8 +18,9 @@ Everything is read from what is stored, in a few indexed aggregate reads (no sys
 
 Beside them, each person's figures as a reviewer, from the system decisions they made with a reviewer's role (audit
 entries ``system.review``; an undo or a revert is not a decision made, nor is what any role's work writes under the
-same action: a ``fixed`` sent back by the person the system was returned to, and a decision set back to pending by an
-edit of the labels or the camera in the same write):
+same action: a ``fixed`` sent back by the person the system was returned to, a decision set back to pending by an
+edit of the labels or the camera in the same write, and a batch's acceptance after a sample, ``after.review.batch_id``,
+whose undo is an undo too):
 
 * ``decisions``: the system decisions they made in the window; ``accepted``, ``rejected``, ``needs_fix``: of those,
   the ones that set that status (``pending`` back is counted in ``decisions`` only);
@@ -156,6 +157,13 @@ def _status(state: Any) -> Optional[str]:
     return review.get("status") if isinstance(review, dict) else None
 
 
+def _batch_acceptance(state: Any) -> bool:
+    """Whether a ``system.review`` entry's state is a batch's acceptance after a sample
+    (``app.services.curation.batches``: ``{"review": {"batch_id": ...}}``), which no person decided one by one."""
+    review = state.get("review") if isinstance(state, dict) else None
+    return isinstance(review, dict) and review.get("batch_id") is not None
+
+
 def _review_figures(session: Session, since: Optional[datetime], until: Optional[datetime], of: Any) -> None:
     """The reviewer figures (module docstring) from the system decisions in the window: the entries' before and after
     states (inline, or their stored rows)."""
@@ -166,7 +174,8 @@ def _review_figures(session: Session, since: Optional[datetime], until: Optional
         .options(selectinload(AuditEntry.before_state), selectinload(AuditEntry.after_state)))
     counted = {ReviewStatus.ACCEPTED.value: "accepted", ReviewStatus.REJECTED.value: "rejected",
                ReviewStatus.NEEDS_FIX.value: "needs_fix"}
-    made = [e for e in entries if _person(e.actor) and _status(e.after) != ReviewStatus.FIXED.value]
+    made = [e for e in entries if _person(e.actor) and _status(e.after) != ReviewStatus.FIXED.value
+            and not _batch_acceptance(e.after)]
     edited = _edited_writes(session, {(e.system_id, e.system_version) for e in made
                                       if _status(e.after) == ReviewStatus.PENDING.value})
     for entry in made:

@@ -9,6 +9,7 @@ against the JaC admission threshold) and distributions.
      "jac_sweep_by_kind": {kind: [{"threshold", "systems_kept"}, ...]},
      "admission": {"gamma", "jac_min"},
      "stale_systems": n,
+     "ball_evidence": {"vouched": n, "unconfirmed": n, "doubted": n, "none": n},
      "distributions": {name: {"edges": [...], "counts": [...], "n", "above"}}}
 
 * images are the frames; calibrated: with a camera; admitted: the calibration is admitted (JaC above the
@@ -21,7 +22,8 @@ against the JaC admission threshold) and distributions.
   (``Settings.admit_jac_gamma``, ``admit_jac_min``), so that a plot can mark it; ``stale_systems`` counts the systems
   computed with other settings (a changed ``V3D_PROFILE``,
   ``app.services.derivation.recompute.systems_computed_otherwise``): their figures here are stale until
-  ``v3d recompute``.
+  ``v3d recompute``; ``ball_evidence`` counts the systems per tier of what backs their 3D ball (the stored
+  ``System.ball_evidence``, ``app.geometry.ball_evidence``; every tier present, 0 for none).
 * distributions (:data:`HISTOGRAM_BINS` equal bins between the smallest and largest value, a long tail counted
   apart, :func:`histogram`): ``jac`` (JaC at the
   admission gamma of every calibrated view), ``pair_reprojection_error_px`` (every triangulation pair's error),
@@ -37,7 +39,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from app.core.config import Settings
-from app.db.models import Frame, System, TriangulationPair
+from app.db.models import BallEvidence, Frame, System, TriangulationPair
 from app.services.calibration.admission import admission_jac
 from app.services.derivation.recompute import systems_computed_otherwise
 from app.services.kinds import kind_of
@@ -82,6 +84,13 @@ def _sweep(per_system_jacs: list[list[float]]) -> list[dict[str, Any]]:
     """Systems kept at each threshold of :data:`JAC_THRESHOLDS`: those with two views or more whose JaC is above it."""
     return [{"threshold": t, "systems_kept": sum(1 for jacs in per_system_jacs if sum(j > t for j in jacs) >= 2)}
             for t in JAC_THRESHOLDS]
+
+
+def evidence_counts(session: Session) -> dict[str, int]:
+    """Systems per tier of what backs their 3D ball (``System.ball_evidence``), every tier of ``BallEvidence`` in
+    its order, 0 for none."""
+    found = dict(session.execute(sa.select(System.ball_evidence, sa.func.count()).group_by(System.ball_evidence)).all())
+    return {t.value: int(found.get(t, 0)) for t in BallEvidence}
 
 
 def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
@@ -139,6 +148,7 @@ def dataset_stats(session: Session, settings: Settings) -> dict[str, Any]:
         "jac_sweep_by_kind": by_kind,
         "admission": {"gamma": settings.admit_jac_gamma, "jac_min": settings.admit_jac_min},
         "stale_systems": systems_computed_otherwise(session, settings),
+        "ball_evidence": evidence_counts(session),
         "distributions": {"jac": histogram(jac_values), "pair_reprojection_error_px": histogram(errors),
                           "ball_distance_m": histogram(distances), "box_size_px": histogram(sizes)},
     }

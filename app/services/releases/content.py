@@ -20,7 +20,8 @@ plus the documents of what changed.
   the export row of ``app.services.transfer.exporting.frame_row_select`` (labels, field lines, calibration, JaC,
   optimised box, reprojection error; JSON values as their stored text, enums by value) with the view's decisions
   (``view_status``, ``view_calibration_status``, ``excluded``); an ISSIA frame's ``trajectory`` (its point on the
-  sequence's fitted trajectory: ``ball3d``, ``ball3d_smoothed``, ``source``, ``cam_list``).
+  sequence's fitted trajectory: ``ball3d``, ``ball3d_smoothed``, ``source``, ``cam_list``); and ``accepted``
+  (since document version 2): how it was accepted, by a person or in a batch after a random sample with its plan.
 
 The release's **hash** (:func:`release_hash`) is the SHA-256 (hex) of the UTF-8 text made of one line per document,
 ``game <game_id> <digest>\\n`` for every game in increasing id, then ``system <system_id> <digest>\\n`` for every
@@ -53,6 +54,7 @@ from app.db.models import (
     ReleaseDocument,
     ReleaseGame,
     ReleaseSystem,
+    ReviewBatch,
     ReviewDecision,
     ReviewStatus,
     System,
@@ -64,8 +66,10 @@ from app.db.session import reads_as_one_snapshot
 from app.db.types import canonical_json, compressed_json, decompressed_json, json_digest, utcnow
 from app.db.unit import write_unit
 from app.services.audit.log import local_actor, record
+from app.services.curation.batches import batch_plan
 from app.services.releases.document import (
     FRAME_KEYS,
+    AcceptanceDocument,
     FrameDocument,
     GameDocument,
     SystemDocument,
@@ -123,18 +127,32 @@ def game_document(game: Game, as_of: str) -> GameDocument:
 
 
 def system_document(rows: list[Any], triangulation: Optional[TriangulationDocument], system: Any,
-                    trajectory: Optional[TrajectoryDocument] = None) -> SystemDocument:
+                    trajectory: Optional[TrajectoryDocument] = None,
+                    accepted: Optional[AcceptanceDocument] = None) -> SystemDocument:
     """The document of a released system (module docstring; :data:`~app.services.releases.document.DOCUMENT_VERSION`)
     from its frames' rows (``frame_row_select`` with the view decision columns; a column the document does not name
-    is not written), its triangulation, its ``systems`` row (kind, derived settings, frame index) and, for an ISSIA
-    frame, its trajectory point."""
+    is not written), its triangulation, its ``systems`` row (kind, derived settings, frame index), for an ISSIA
+    frame its trajectory point, and how it was accepted (:func:`acceptance`; None writes a version 1 document)."""
     first = rows[0]
     frames = tuple(FrameDocument(**{k: _plain(row._mapping[k]) for k in FRAME_KEYS}) for row in rows)
     return SystemDocument(system_id=first.system_id, name=first.system_name, kind=_plain(system.kind),
                           game_id=first.game_id, review_status=_plain(first.review_status), ball3d=first.ball3d,
                           triangulation=triangulation, derived_settings=system.derived_settings,
                           derived_version=system.derived_version, frame_index=system.frame_index, frames=frames,
-                          trajectory=trajectory)
+                          trajectory=trajectory, accepted=accepted)
+
+
+def acceptances(session: Session, batch_ids: Iterable[Optional[int]]) -> dict[Optional[int], AcceptanceDocument]:
+    """How a system whose decision names each of ``batch_ids`` was accepted: None (a person's decision) ->
+    ``how`` person; a batch's id -> ``how`` batch with its plan (``app.services.curation.batches``)."""
+    out: dict[Optional[int], AcceptanceDocument] = {None: AcceptanceDocument(how="person")}
+    ids = sorted({b for b in batch_ids if b is not None})
+    for start in range(0, len(ids), _CHUNK):
+        for batch in session.scalars(select(ReviewBatch).where(ReviewBatch.id.in_(ids[start:start + _CHUNK]))):
+            out[batch.id] = AcceptanceDocument(
+                how="batch", batch_id=batch.id, confidence=batch.confidence, max_wrong_share=batch.max_wrong_share,
+                sample=len(batch.sample_ids), systems=len(batch.system_ids), plan=batch_plan(batch))
+    return out
 
 
 def _accepted_rows(session: Session) -> Iterator[list[Any]]:
@@ -221,14 +239,17 @@ def create_release(session: Session, name: str, note: str = "", actor: Optional[
     systems: dict[int, tuple[int, str, str]] = {}
     views = 0
     system_rows = {s.id: s for s in session.execute(
-        select(System.id, System.kind, System.derived_settings, System.derived_version, System.frame_index)
+        select(System.id, System.kind, System.derived_settings, System.derived_version, System.frame_index,
+               ReviewDecision.batch_id)
         .join(ReviewDecision, ReviewDecision.system_id == System.id)
         .where(ReviewDecision.status == ReviewStatus.ACCEPTED))}
+    accepted = acceptances(session, (s.batch_id for s in system_rows.values()))
     without_ball = 0
     for rows in _accepted_rows(session):
         sid = rows[0].system_id
         # an ISSIA frame has its place on the sequence's fitted trajectory
-        document = system_document(rows, triangulations.get(sid), system_rows[sid], trajectory.get(sid))
+        document = system_document(rows, triangulations.get(sid), system_rows[sid], trajectory.get(sid),
+                                   accepted[system_rows[sid].batch_id])
         without_ball += not document.has_ball3d
         canonical = canonical_json(document.as_json())
         digest = json_digest(canonical)

@@ -19,15 +19,23 @@ document version:
 Version 1 (module docstring of ``app.services.releases.content`` for what each key means): the JSON values are kept
 as they were stored (the stored JSON columns as their text, enums by value, numbers as they were), never mapped
 to the live enums or models, which may change.
+
+Version 2 (releases made since systems are accepted in batches after a sample): a system's document is version 1's
+with ``document_version`` 2 and ``accepted`` (:class:`AcceptanceDocument`: by a person, or in a batch after a sample
+with its plan). Its game documents are version 1's. A release made before keeps its version 1 documents, so its
+exports are the same bytes; the formats render both versions alike (``render.v1``): how a system was accepted is in
+the release's documents (``v3d-release/documents.jsonl.gz`` of every export), not in the format files.
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any, Optional
 
-#: The version of the documents a release writes now.
-DOCUMENT_VERSION = 1
+#: The version of the documents a release writes now: 2, a system's document saying how it was accepted
+#: (:class:`AcceptanceDocument`); its game documents are those of version 1 (no version key).
+DOCUMENT_VERSION = 2
 #: The key naming a document's version (absent: version 1).
 VERSION_KEY = "document_version"
 
@@ -133,6 +141,28 @@ class FrameDocument:
 
 
 @dataclass(frozen=True)
+class AcceptanceDocument:
+    """How a released system was accepted (version 2): ``how`` is ``person`` (a person's decision) or ``batch`` (in a
+    batch of vouched systems after a random sample, ``app.services.curation.batches``: ``batch_id``, the plan's
+    ``confidence`` and ``max_wrong_share`` (fractions), ``sample`` systems reviewed of the batch's ``systems``, and
+    the ``plan`` in words); the batch's fields are None for a person's."""
+
+    how: str
+    batch_id: Optional[int] = None
+    confidence: Optional[float] = None
+    max_wrong_share: Optional[float] = None
+    sample: Optional[int] = None
+    systems: Optional[int] = None
+    plan: Optional[str] = None
+
+    def as_json(self) -> dict[str, Any]:
+        """As a system's document stores it: ``{"how": "person"}``, or every field for a batch's."""
+        if self.how != "batch":
+            return {"how": self.how}
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
 class SystemDocument:
     """A released multi-view system (version 1): its id, name, kind (value of ``SystemKind``), game id, review
     status (value of ``ReviewStatus``), ``ball3d`` (the triangulated ball as its stored JSON text: world metres
@@ -152,6 +182,8 @@ class SystemDocument:
     frame_index: Optional[int]
     frames: tuple[FrameDocument, ...]
     trajectory: Optional[TrajectoryDocument] = None
+    #: How it was accepted (version 2; None in a version 1 document, written before releases said it).
+    accepted: Optional[AcceptanceDocument] = None
 
     @property
     def has_ball3d(self) -> bool:
@@ -160,7 +192,8 @@ class SystemDocument:
         return self.ball3d not in (None, "null")
 
     def as_json(self) -> dict[str, Any]:
-        """The document as stored (version 1: no version key; ``trajectory`` only where there is one)."""
+        """The document as stored: version 1 (no version key; ``trajectory`` only where there is one) without
+        ``accepted``, else version 2 (its ``document_version`` and ``accepted`` beside version 1's keys)."""
         out = {"system_id": self.system_id, "name": self.name, "kind": self.kind, "game_id": self.game_id,
                "review_status": self.review_status, "ball3d": self.ball3d,
                "triangulation": None if self.triangulation is None else self.triangulation.as_json(),
@@ -168,6 +201,8 @@ class SystemDocument:
                "frame_index": self.frame_index, "frames": [f.as_json() for f in self.frames]}
         if self.trajectory is not None:
             out["trajectory"] = self.trajectory.as_json()
+        if self.accepted is not None:
+            out[VERSION_KEY], out["accepted"] = 2, self.accepted.as_json()
         return out
 
 
@@ -211,10 +246,20 @@ def _system_v1(data: Mapping[str, Any]) -> SystemDocument:
             cam_list=list(trajectory["cam_list"])))
 
 
+def _system_v2(data: Mapping[str, Any]) -> SystemDocument:
+    """Version 2: version 1 and how the system was accepted."""
+    accepted = data["accepted"]
+    return dataclasses.replace(_system_v1(data), accepted=AcceptanceDocument(
+        how=accepted["how"], batch_id=accepted.get("batch_id"), confidence=accepted.get("confidence"),
+        max_wrong_share=accepted.get("max_wrong_share"), sample=accepted.get("sample"),
+        systems=accepted.get("systems"), plan=accepted.get("plan")))
+
+
 #: Per document version ever written: (game reader, system reader), each from the parsed stored JSON. Never
-#: remove or change one: releases written with it are read with it.
+#: remove or change one: releases written with it are read with it. Version 2 changed the system documents only.
 READERS: dict[int, tuple[Callable[[Mapping[str, Any]], GameDocument],
-                         Callable[[Mapping[str, Any]], SystemDocument]]] = {1: (_game_v1, _system_v1)}
+                         Callable[[Mapping[str, Any]], SystemDocument]]] = {1: (_game_v1, _system_v1),
+                                                                            2: (_game_v1, _system_v2)}
 
 
 def read_game(data: Mapping[str, Any]) -> GameDocument:

@@ -6,8 +6,9 @@ against what was imported: ``app.services.images.serving``), and the settings it
 in each format is its version's renderer's (``app.services.releases.render.v1``: the rows, the kinds each format
 takes, the settings of releases made before they were recorded, and the live writers it renders through), so that a
 release's export is the export of the database as it was when the release was made, whatever the live export does
-later. Every stored document is version 1 today (``document.READERS``); a later version adds its renderer and the
-choice of it here, by the documents' type.
+later. Version 2 documents (a system's says how it was accepted) render as version 1 does: the format files
+carry nothing of how a system was accepted, the release's documents file does. A later version that changes what
+a format writes adds its renderer and the choice of it here, by the documents' type.
 
 :class:`ReleaseSource` yields each game's ``Labels-v3D.json`` and ``SNv3D.csv`` rows; each game's
 ``GameMetadata.v3d_release`` names the release and its hash; the archive ends with ``v3d-release.json`` (the

@@ -31,6 +31,7 @@ from v3d_client.errors import (
 from v3d_client.models import (
     Annotator,
     AuditEntry,
+    Batch,
     Comment,
     Decision,
     Doubt,
@@ -50,9 +51,9 @@ from v3d_client.models import (
 from v3d_client.version import __version__
 
 __all__ = [
-    "APIError", "Annotator", "AuditEntry", "BadRequest", "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt",
-    "EditConflict", "Forbidden", "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound",
-    "PredictionSource", "PreconditionRequired", "ROUTES", "Release", "ReleaseDiff", "ServerError", "Stats", "System",
-    "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError", "VersionMismatch", "View",
-    "__version__",
+    "APIError", "Annotator", "AuditEntry", "BadRequest", "Batch", "Busy", "Client", "Comment", "Conflict", "Decision",
+    "Doubt", "EditConflict", "Forbidden", "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT",
+    "NotFound", "PredictionSource", "PreconditionRequired", "ROUTES", "Release", "ReleaseDiff", "ServerError", "Stats",
+    "System", "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError",
+    "VersionMismatch", "View", "__version__",
 ]

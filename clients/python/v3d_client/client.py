@@ -37,6 +37,9 @@ from v3d_client.models import (
     Annotators,
     AuditEntry,
     AuditPage,
+    Batch,
+    BatchAccepted,
+    BatchUndone,
     Comment,
     CommentPage,
     Decision,
@@ -86,6 +89,8 @@ LEFT_OUT: dict[str, str] = {
     "GET /api/passes/{pass_id}": "review passes are the page's (see POST /api/passes)",
     "GET /api/passes/{pass_id}/place": "review passes are the page's (see POST /api/passes)",
     "POST /api/passes/{pass_id}/visits": "review passes are the page's (see POST /api/passes)",
+    "POST /api/batches/{batch_id}/pass": "the system page's review pass over a batch's sample (see POST "
+                                         "/api/passes); a script decides the sample with Client.decide",
     "GET /api/handoffs/mine": "the queue's 'To fix' and 'To re-review' counts for the person logged in; a script "
                               "asks Client.systems(status='needs_fix' or 'fixed', assignee=...)",
     "GET /api/systems/{system_id}/handoff": "the system page's hand-off banner; Client.decide answers the hand-off "
@@ -351,21 +356,24 @@ class Client:
                 assignee: Optional[str] = None, jac_min: Optional[float] = None, jac_max: Optional[float] = None,
                 error_min: Optional[float] = None, error_max: Optional[float] = None,
                 sigma_min: Optional[float] = None, sigma_max: Optional[float] = None, camera: Optional[str] = None,
-                sort: Optional[str] = None, page_size: int = 200) -> Iterator[SystemSummary]:
+                ball_evidence: Optional[str] = None, sort: Optional[str] = None,
+                page_size: int = 200) -> Iterator[SystemSummary]:
         """Every system of the queue that the filters keep, in the queue's order (``sort``), page after page by
         the queue's cursor (a system moved meanwhile is neither skipped nor repeated by the pages).
 
         Args:
             status: pending, accepted, rejected, needs_fix or fixed.
             doubt: a doubt kind (``mirrored_labels`` ...), ``any`` (a label-accusing doubt) or ``none``.
-            game_id, assignee, jac_min, jac_max, error_min, error_max, sigma_min, sigma_max, camera, sort: the queue's
-                filters (``docs/api.md``); errors in pixels, JaC a fraction, the 3D ball's sigma in metres.
+            game_id, assignee, jac_min, jac_max, error_min, error_max, sigma_min, sigma_max, camera, ball_evidence,
+                sort: the queue's filters (``docs/api.md``); errors in pixels, JaC a fraction, the 3D ball's sigma in
+                metres, ``ball_evidence`` a tier (vouched, unconfirmed, doubted, none).
             page_size: systems a request (at most 500).
         """
         params: dict[str, Any] = {"status": status, "doubt": doubt, "game_id": game_id, "assignee": assignee,
                                   "jac_min": jac_min, "jac_max": jac_max, "error_min": error_min,
                                   "error_max": error_max, "sigma_min": sigma_min, "sigma_max": sigma_max,
-                                  "camera": camera, "sort": sort, "limit": page_size}
+                                  "camera": camera, "ball_evidence": ball_evidence, "sort": sort,
+                                  "limit": page_size}
         while True:
             page = self._get("/api/systems", SystemPage, **params)
             yield from page.items
@@ -389,6 +397,34 @@ class Client:
             body["assignee"] = assignee
         return Decision.model_validate(self._send("POST", f"/api/systems/{system.id}/review", etag=system.etag,
                                                   json=body).json())
+
+    # ----- batches: the vouched accepted after a random sample -----------------------------------------------------
+    @_route("POST /api/batches", answer=Batch)
+    def create_batch(self, *, confidence: float = 0.95, max_wrong_share: float = 0.05,
+                     **filters: Any) -> Batch:
+        """Make a batch of the pending systems whose ball is vouched for that the queue's ``filters`` select
+        (``game_id``, ``jac_min``, ``doubt``, ... as :meth:`systems` takes them), with the server's random sample of
+        the zero-acceptance plan's size (59 for 95 % and 5 %) and the plan in words. Reviewers."""
+        body = {"filter": {k: v for k, v in filters.items() if v is not None}, "confidence": confidence,
+                "max_wrong_share": max_wrong_share}
+        return Batch.model_validate(self._send("POST", "/api/batches", json=body).json())
+
+    @_route("GET /api/batches/{batch_id}", answer=Batch)
+    def batch(self, batch_id: int) -> Batch:
+        """One batch, and while open what stops its accept now (``stops``: empty when it may be accepted)."""
+        return self._get(f"/api/batches/{int(batch_id)}", Batch)
+
+    @_route("POST /api/batches/{batch_id}/accept", answer=BatchAccepted)
+    def accept_batch(self, batch_id: int) -> BatchAccepted:
+        """Accept the batch's unsampled systems once a person accepted every sampled one and nothing else changed;
+        :class:`Conflict` naming each system that stops it otherwise (a rejected or changed one refuses it for
+        good). Reviewers."""
+        return BatchAccepted.model_validate(self._send("POST", f"/api/batches/{int(batch_id)}/accept").json())
+
+    @_route("POST /api/batches/{batch_id}/undo", answer=BatchUndone)
+    def undo_batch(self, batch_id: int) -> BatchUndone:
+        """Put the systems a batch accepted back to pending (those a person decided since are kept). Reviewers."""
+        return BatchUndone.model_validate(self._send("POST", f"/api/batches/{int(batch_id)}/undo").json())
 
     # ----- frames and their edits ---------------------------------------------------------------------------------
     @_route("GET /api/frames", answer=FramePage)

@@ -96,6 +96,9 @@ class SystemSummary(Model):
     ball3d: Optional[Point3] = Field(description="The 3D ball, metres (SoccerNet world frame); None: none.")
     ball_sigma_m: Optional[float] = Field(None, description="The 3D ball's sigma, metres along its least certain "
                                           "direction; None without one.")
+    ball_evidence: str = Field("none", description="What backs the 3D ball: vouched, unconfirmed, doubted or none "
+                               "(docs/review.md).")
+    ball_evidence_reasons: list[str] = Field([], description="Why, as short phrases.")
     views_total: int
     views_calibrated: int
     views_admitted: int
@@ -283,6 +286,9 @@ class System(Model):
     next_id: Optional[int]
     ball3d: Optional[Point3]
     ball_sigma_m: Optional[float] = None
+    #: What backs the 3D ball (vouched, unconfirmed, doubted, none) and why, as short phrases.
+    ball_evidence: str = "none"
+    ball_evidence_reasons: list[str] = []
     triangulation: Optional[Triangulation]
     views: list[View]
     doubts: list[Doubt]
@@ -379,6 +385,51 @@ class JobPage(Model):
     total: int
     limit: int
     offset: int
+
+
+# ----- batches ----------------------------------------------------------------------------------------------------
+class BatchStop(Model):
+    """A system that stops a batch's accept, in words; ``final``: for good (a rejection, a change), else the batch
+    waits for it (a sampled system not decided yet)."""
+
+    system_id: int
+    words: str
+    final: bool
+
+
+class Batch(Model):
+    """A batch of pending vouched systems accepted after a random sample: ``systems`` it holds, the ``sample`` a
+    person reviews, the ``plan`` in words, its ``state`` (open, accepted, refused, undone) and, while open, what stops
+    its accept now (``stops``)."""
+
+    id: int
+    created_by: str
+    created_at: datetime
+    filter: dict[str, Any]
+    confidence: float
+    max_wrong_share: float
+    systems: list[int]
+    sample: list[int]
+    plan: str
+    state: str
+    refusal: Optional[str] = None
+    accepted: int
+    decided_by: Optional[str] = None
+    decided_at: Optional[datetime] = None
+    stops: list[BatchStop] = []
+
+
+class BatchAccepted(Model):
+    """How many systems a batch's accept accepted."""
+
+    accepted: int
+
+
+class BatchUndone(Model):
+    """A batch undone: ``undone`` systems back to pending; ``kept``: those decided by a person since."""
+
+    undone: int
+    kept: list[BatchStop] = []
 
 
 # ----- releases -------------------------------------------------------------------------------------------------
@@ -632,4 +683,6 @@ class Stats(Model):
     jac_sweep_by_kind: dict[str, list[SweepPoint]]
     admission: Admission
     stale_systems: int
+    #: Systems per tier of what backs their 3D ball (vouched, unconfirmed, doubted, none).
+    ball_evidence: dict[str, int]
     distributions: dict[str, Histogram]

@@ -114,6 +114,10 @@ def test_stats_and_box_evaluation_routes(client, scene, db_session):
     assert body["kinds"]["soccernet-v3"]["images"] == 3 and body["kinds"]["soccernet-v3"]["systems"] == 1
     assert len(body["jac_sweep"]) == 21 and set(body["distributions"]) == {
         "jac", "pair_reprojection_error_px", "ball_distance_m", "box_size_px"}
+    # the systems per tier of what backs their 3D ball, every tier present: the one system's, counted once
+    from app.db.models import System
+    tier = db_session.query(System).one().ball_evidence.value
+    assert body["ball_evidence"] == {t: int(t == tier) for t in ("vouched", "unconfirmed", "doubted", "none")}
     frames = db_session.query(Frame).all()
     for f in frames:
         x1, y1, x2, y2 = f.ball_label.box

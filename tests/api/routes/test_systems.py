@@ -515,3 +515,37 @@ def test_every_3d_ball_carries_its_sigma_and_the_queue_filters_by_it(client: Tes
         queue["exact"].system_id}
     bad = client.get("/api/systems?sigma_min=2&sigma_max=1")
     assert bad.status_code == 422 and "sigma_min" in bad.text
+
+
+@pytest.mark.engine
+def test_each_3d_ball_says_what_backs_it_and_the_queue_filters_and_sorts_by_it(
+        client: TestClient, db_session: Session, db_settings: Settings, queue: dict[str, Scene]) -> None:
+    """The system view and each queue row carry the stored tier of the 3D ball and its reasons: three views that agree
+    vouch for it, two views only leave it unconfirmed, a system without a ball is ``none``. ``ball_evidence=`` lists
+    exactly the systems of that tier, ``sort=ball_evidence`` puts the vouched first and the systems without a ball
+    last (reversed by ``-ball_evidence``), and an unknown tier is a 422 naming the parameter."""
+    from app.db.models import Game
+
+    game = db_session.get(Game, queue["exact"].game_id)
+    two = make_system(db_session, db_settings, game, "4.png", labelled=(True, True, False))
+    exact = client.get(f"/api/systems/{queue['exact'].system_id}").json()
+    assert exact["ball_evidence"] == "vouched", exact["ball_evidence_reasons"]
+    assert "three views agree" in exact["ball_evidence_reasons"]
+    lonely = client.get(f"/api/systems/{queue['lonely'].system_id}").json()
+    assert lonely["ball_evidence"] == "none" and lonely["ball_evidence_reasons"] == []
+    pair = client.get(f"/api/systems/{two.system_id}").json()
+    assert pair["ball_evidence"] == "unconfirmed"
+    assert pair["ball_evidence_reasons"][0] == "only two views: nothing else checks it"
+    rows = {r["id"]: r for r in client.get("/api/systems").json()["items"]}
+    assert rows[two.system_id]["ball_evidence"] == "unconfirmed"
+    assert rows[queue["exact"].system_id]["ball_evidence_reasons"] == exact["ball_evidence_reasons"]
+    for tier in ("vouched", "unconfirmed", "doubted", "none"):
+        listed = _ids(client.get("/api/systems", params={"ball_evidence": tier}).json())
+        assert sorted(listed) == sorted(i for i, r in rows.items() if r["ball_evidence"] == tier), tier
+    order = [rows[i]["ball_evidence"] for i in _ids(client.get("/api/systems?sort=ball_evidence").json())]
+    rank = ["vouched", "unconfirmed", "doubted", "none"]
+    assert order == sorted(order, key=rank.index) and order[0] == "vouched" and order[-1] == "none"
+    backwards = [rows[i]["ball_evidence"] for i in _ids(client.get("/api/systems?sort=-ball_evidence").json())]
+    assert backwards == order[::-1]
+    bad = client.get("/api/systems?ball_evidence=sure")
+    assert bad.status_code == 422 and "ball_evidence" in bad.text

@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy.orm import Session
 
 from app.core.errors import InvalidInputError
-from app.db.models import Doubt, Game, ReviewStatus, System, SystemKind
+from app.db.models import BallEvidence, Doubt, Game, ReviewStatus, System, SystemKind
 from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS, label_severity
 from app.services.curation import queue
 from app.services.curation.queue import SystemFilters
@@ -18,13 +18,14 @@ from app.services.curation.queue import SystemFilters
 pytestmark = pytest.mark.engine
 
 SORTS = ["-severity", "severity", "-doubts", "doubts", "-worst_error",
-          "worst_error", "lowest_jac", "-lowest_jac", "name", "-name"]
+          "worst_error", "lowest_jac", "-lowest_jac", "name", "-name", "ball_evidence", "-ball_evidence"]
 FILTERS = {
     "none": SystemFilters(),
     "pending": SystemFilters(status=ReviewStatus.PENDING),
     "error_min": SystemFilters(error_min=2.0),
     "doubt_any": SystemFilters(doubt="any"),
     "doubt_kind": SystemFilters(doubt="ball_off_consensus"),
+    "vouched": SystemFilters(ball_evidence=BallEvidence.VOUCHED),
 }
 
 
@@ -44,7 +45,8 @@ def many(db_session: Session) -> list[System]:
                    label_doubts=rng.choice([0, 0, 1, 2]),
                    worst_error_px=rng.choice([None, 0.5, 1.25, 2.0, 3.5, 3.5, 9.0]),
                    lowest_jac=rng.choice([None, 0.6, 0.8, 0.8, 0.95]),
-                   review_status=rng.choice([ReviewStatus.PENDING] * 3 + [ReviewStatus.ACCEPTED, ReviewStatus.FIXED]))
+                   review_status=rng.choice([ReviewStatus.PENDING] * 3 + [ReviewStatus.ACCEPTED, ReviewStatus.FIXED]),
+                   ball_evidence=rng.choice(list(BallEvidence)))
         systems.append(s)
     db_session.add_all(systems)
     db_session.flush()
@@ -73,7 +75,8 @@ def _expected(db_session: Session, systems: list[System], sort: str, filters: Sy
     rows = [s for s in systems if (filters.status is None or s.review_status == filters.status)
             and (filters.error_min is None or (s.worst_error_px is not None and s.worst_error_px >= filters.error_min))
             and (filters.doubt != "any" or s.label_doubts > 0)
-            and (filters.doubt != "ball_off_consensus" or s.id in doubted)]
+            and (filters.doubt != "ball_off_consensus" or s.id in doubted)
+            and (filters.ball_evidence is None or s.ball_evidence == filters.ball_evidence)]
     desc = sort.startswith("-")
     key = sort.lstrip("-")
     games = {g.id: g for g in db_session.query(Game)}
@@ -88,6 +91,9 @@ def _expected(db_session: Session, systems: list[System], sort: str, filters: Sy
                     nulls_last(s.worst_error_px, desc), sign * s.label_doubts, sign * s.id)
         if key == "doubts":
             return (sign * s.label_doubts, nulls_last(s.worst_error_px, True), sign * s.id)
+        if key == "ball_evidence":  # vouched, unconfirmed, doubted, none; ties by the largest error
+            rank = ["vouched", "unconfirmed", "doubted", "none"].index(s.ball_evidence.value)
+            return (sign * rank, nulls_last(s.worst_error_px, True), sign * s.id)
         col = s.worst_error_px if key == "worst_error" else s.lowest_jac
         return (nulls_last(col, desc), sign * s.id)
 

@@ -8,8 +8,10 @@ golden files of a version are never written again, they are what releases of tha
 
 The data: two SoccerNet-v3 systems of the test factories (``tests.api.factories``: exact cameras, field lines, ball
 boxes; the first view's image a member of the game's ``Frames-v3.zip``, the second a PNG file; one view's box 3 px
-off), a third left pending (not released), and a synthetic ISSIA sequence of six static cameras and five frames (a
-ball rolling across the centre circle, two views unlabelled), four frames accepted. No data of ``../shared``.
+off; since version 2 the second is accepted in a batch after a sample, with a vouched system of a second game its
+sample, which a person accepts), a third left pending (not released), and a synthetic ISSIA sequence of six static
+cameras and five frames (a ball rolling across the centre circle, two views unlabelled), four frames accepted. No data
+of ``../shared``.
 
 Written under ``golden/v<DOCUMENT_VERSION>/``: ``release.json`` (the release's row and what it names),
 ``documents/<digest>.json.gz`` (each document's stored body, as the database holds it), ``frames.json`` and
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import json
+import random
 import shutil
 import sys
 import tempfile
@@ -31,9 +34,12 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.db.models import Frame, Release, ReleaseDocument, ReleaseGame, ReleaseSystem, ReviewStatus, System
+from app.db.models.enums import BallEvidence
 from app.db.session import make_engine, upgrade_database
 from app.geometry.camera import Camera
+from app.services.curation import batches
 from app.services.curation.decisions import decide_review
+from app.services.curation.queue import SystemFilters
 from app.services.exports.files import write_export_zip
 from app.services.exports.formats import RELEASE_EXPORTS
 from app.services.issia.sequences import import_issia
@@ -81,6 +87,24 @@ def write_issia(folder: Path) -> Path:
     return folder
 
 
+def _accept_in_a_batch(session: Session, system_id: int) -> None:
+    """Accept ``system_id`` in a batch after a sample (version 2 documents say so): a batch of it and a vouched
+    system of another game, sampling one of the two at 50 % / 50 %, whose sampled system a person accepts."""
+    other = make_system(session, Settings(database_url=str(session.get_bind().url), calibration_workers=1),
+                        make_game(session, match="2016-01-01 - 12-00 Sampled 0 - 0 Batch"), "1.png")
+    for sid in (system_id, other.system_id):
+        system = session.get(System, sid)
+        assert system is not None
+        system.ball_evidence = BallEvidence.VOUCHED
+    session.commit()
+    batch = batches.create_batch(session, "golden", SystemFilters(), 0.5, 0.5, rng=random.Random(0))
+    sampled = other.system_id
+    if batch.sample_ids != [sampled]:  # the seed's draw: keep the golden system out of the sample
+        raise RuntimeError(f"the sample is {batch.sample_ids}, not [{sampled}]: choose another seed")
+    decide_review(session, system_id=sampled, status=ReviewStatus.ACCEPTED, actor="golden")
+    assert batches.accept_batch(session, batch.id, "golden") == 1
+
+
 def make(out: Path, work: Path) -> None:
     """The golden files (module docstring) of a release made in a fresh SQLite database under ``work``."""
     url = f"sqlite:///{work / 'v3d.sqlite3'}"
@@ -96,8 +120,9 @@ def make(out: Path, work: Path) -> None:
         import_issia(session, write_issia(work / "issia-golden"), settings)
         issia = session.scalars(select(System).where(System.frame_index.is_not(None))
                                 .order_by(System.frame_index)).all()
-        for sid in [scenes[0].system_id, scenes[1].system_id, *(s.id for s in issia[:4])]:
+        for sid in [scenes[0].system_id, *(s.id for s in issia[:4])]:
             decide_review(session, system_id=sid, status=ReviewStatus.ACCEPTED)
+        _accept_in_a_batch(session, scenes[1].system_id)
         session.commit()
         release = create_release(session, RELEASE_NAME, "the golden files' release", actor="golden")
         (out / "documents").mkdir(parents=True)
