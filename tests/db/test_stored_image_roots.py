@@ -44,9 +44,11 @@ def test_stored_folders_become_keys_and_a_release_exports_the_same_bytes(tmp_pat
     try:
         with Session(engine) as session:
             # the rows as the current models read and write them hold columns of later revisions (0038, a release's
-            # export settings; 0039, a 3D ball's sigma; 0041, the batch that accepted a system): added while this
-            # revision's code runs, dropped before the upgrade, which adds them
+            # export settings; 0039, a 3D ball's sigma; 0040, what backs the ball; 0041, the batch that accepted a
+            # system): added while this revision's code runs, dropped before the upgrade, which adds them
             session.execute(sa.text("ALTER TABLE triangulations ADD COLUMN sigma_m FLOAT"))
+            session.execute(sa.text("ALTER TABLE systems ADD COLUMN ball_evidence VARCHAR(11) DEFAULT 'none' NOT NULL"))
+            session.execute(sa.text("ALTER TABLE systems ADD COLUMN ball_evidence_reasons JSON DEFAULT '[]' NOT NULL"))
             session.execute(sa.text("ALTER TABLE review_decisions ADD COLUMN batch_id INTEGER"))
             game = make_game(session)
             for k, folder in enumerate((upload, under_root, elsewhere), 1):
@@ -64,6 +66,8 @@ def test_stored_folders_become_keys_and_a_release_exports_the_same_bytes(tmp_pat
             session.execute(sa.text("ALTER TABLE releases DROP COLUMN export_settings"))
             session.execute(sa.text("ALTER TABLE triangulations DROP COLUMN sigma_m"))
             session.execute(sa.text("ALTER TABLE review_decisions DROP COLUMN batch_id"))
+            session.execute(sa.text("ALTER TABLE systems DROP COLUMN ball_evidence"))
+            session.execute(sa.text("ALTER TABLE systems DROP COLUMN ball_evidence_reasons"))
             session.commit()
 
             command.upgrade(alembic_config(url), "head")
