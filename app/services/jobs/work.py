@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -20,7 +21,7 @@ from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
-from app.core.errors import InvalidInputError
+from app.core.errors import ForbiddenError, InvalidInputError
 from app.core.names import clean_title
 from app.core.progress import Progress
 from app.db.models import Job
@@ -31,10 +32,16 @@ from app.services.exports.files import EXPORTS, prune_exports, prune_stored_expo
 from app.services.exports.formats import NOTHING, RELEASE_EXPORTS, export_format
 from app.services.jobs.summary import summary
 from app.services.storage import storage_for
-from app.services.storage.datasets import DatasetFiles, rekey_frames
+from app.services.storage.datasets import UPLOADS, DatasetFiles, rekey_frames
 from app.services.storage.stores import checked_key
 from app.services.transfer import data_root
 from app.services.transfer.import_formats import import_format, stored_games_refusal
+
+#: True while this process runs an import its operator named on this machine's command line (``v3d import``:
+#: ``runner.run_job(..., command_line=True)``), the one import that may read a folder outside the data root (the
+#: command is not confined). A job row anyone else queued (the API, an archive restored, a runner taking over a
+#: stale job) reads only under the data root or from its own upload: the row's path is data, not the operator's word.
+COMMAND_LINE = ContextVar("v3d_command_line_import", default=False)
 
 
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
@@ -104,14 +111,76 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
         FileNotFoundError: the upload is no longer in the store.
     """
     files = DatasetFiles.from_settings(settings)
+    params = confined_import(params, settings, files)
     key = params.get("upload_key")
-    if key:
-        params = {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
     try:
         return _import_and_rekey(session, params, settings, progress, job_id, files)
     finally:
         if key and files.storage.local_path(str(key)) is None:  # this node's copy of an upload kept elsewhere
-            shutil.rmtree(params["path"], ignore_errors=True)
+            remove_upload(params["path"], files)
+
+
+def upload_folders(files: DatasetFiles) -> list[Path]:
+    """The folders (resolved) an upload is unpacked into or read from: this node's ``<jobs dir>/uploads`` and a
+    folder store's own ``uploads``."""
+    out = [(files.scratch / UPLOADS).resolve()]
+    own = files.storage.local_path(UPLOADS)
+    if own is not None:
+        out.append(own.resolve())
+    return out
+
+
+def is_upload_folder(path: str | Path, files: DatasetFiles) -> bool:
+    """True when ``path`` is itself (no link) one upload's folder: a direct child of :func:`upload_folders`."""
+    candidate = Path(path)
+    if candidate.is_symlink():
+        return False
+    resolved = candidate.resolve()
+    return any(resolved.parent == root for root in upload_folders(files))
+
+
+def remove_upload(path: str | Path, files: DatasetFiles) -> bool:
+    """Remove the upload folder ``path`` when it is one (:func:`is_upload_folder`), never any other folder (a job
+    row's path is data: a restored or hand-made row naming a folder of the host must not delete it); whether it was
+    removed."""
+    if not is_upload_folder(path, files):
+        return False
+    shutil.rmtree(Path(path).resolve(), ignore_errors=True)
+    return True
+
+
+def confined_import(params: dict[str, Any], settings: Settings, files: DatasetFiles) -> dict[str, Any]:
+    """``params`` with the path the import reads checked (and, for an upload kept in the store, found on this node):
+
+    * ``upload_key``: ``uploads/<one name>``, read from this node's copy of it or the folder store's own folder;
+    * ``upload`` without a key (a job of an older v3d): its path is one upload's folder (:func:`is_upload_folder`);
+    * otherwise its path lies under the data root (``V3D_DATA_ROOT``), as the API's imports require, unless the
+      operator typed it on this machine's command line (:data:`COMMAND_LINE`).
+
+    Raises:
+        ForbiddenError: anything else, named (field ``path`` or ``upload_key``); nothing read.
+        FileNotFoundError: the upload is no longer in the store.
+    """
+    key = params.get("upload_key")
+    if key:
+        parts = str(key).split("/")
+        if len(parts) != 2 or parts[0] != UPLOADS or parts[1] in ("", ".", ".."):
+            raise ForbiddenError(f"upload_key: {str(key)[:200]!r} is not an upload's folder in the store "
+                                 f"({UPLOADS}/<name>): nothing imported")
+        return {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
+    if params.get("upload"):
+        if not is_upload_folder(params["path"], files):
+            raise ForbiddenError("path: an upload's folder lies in the server's uploads folder and this job's does "
+                                 "not: nothing imported")
+        return params
+    if COMMAND_LINE.get():
+        return params
+    try:
+        return {**params, "path": str(data_root.confined_path(params["path"], settings.data_root))}
+    except ForbiddenError:
+        raise ForbiddenError("path: a queued import reads only under the data root (V3D_DATA_ROOT); this job's "
+                             "path is not there: nothing imported (run `v3d import` on the machine to import "
+                             "another folder)") from None
 
 
 def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
@@ -123,7 +192,7 @@ def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settin
         result = _import(session, params, settings, progress, job_id)
     except InvalidInputError:
         if params.get("upload"):
-            shutil.rmtree(params["path"], ignore_errors=True)
+            remove_upload(params["path"], files)
             if key:
                 files.storage.delete_tree(str(key))
         raise
