@@ -6,6 +6,7 @@ target holding data, a key the store cannot hold) exits 2 and writes nothing."""
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
@@ -56,6 +57,10 @@ def backup_cmd(
                f"{report.objects:,} files, schema {report.schema_revision}, {report.seconds:.1f} s")
     for name in report.missing:
         typer.echo(f"warning: named by the database but not found, not in the archive: {name}", err=True)
+    for part in report.stale_parts:
+        what = "remove it once no backup is running" if Path(part).exists() else "this backup wrote over it"
+        typer.echo(f"warning: {part} was left by a backup that did not finish (killed, or running now) and holds "
+                   f"secrets: {what}", err=True)
 
 
 @cli.command("restore")
@@ -97,5 +102,8 @@ def restore_cmd(
                    f"{manifest.created_at})")
         return
     typer.echo(f"restored {archive}: {report.rows:,} rows, {report.objects:,} files, {report.seconds:.1f} s")
+    if report.jobs_not_run:
+        typer.echo(f"{report.jobs_not_run} job(s) the archive held queued or running are kept failed, not run here: "
+                   f"queue them again on this deployment if they are still wanted", err=True)
     for root in report.missing_roots:
         typer.echo(f"warning: the images of {root} were not in the archive and are not on this machine", err=True)

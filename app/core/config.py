@@ -370,6 +370,14 @@ class Settings(BaseSettings):
         24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
         "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "
         "asked for (then 404).")
+    restore_max_line_mb: float = Field(
+        64.0, gt=0, description="Longest table row a restore reads from an archive (MB, 2^20 bytes: one line of a "
+        "tables/*.jsonl member, a release document the largest): a longer one refuses the restore (exit 2) at its "
+        "byte past the bound, so an archive's rows never hold more memory than this (V3D_RESTORE_MAX_LINE_MB).")
+    restore_spare_mb: float = Field(
+        256.0, ge=0, description="Free space a restore leaves on the disk of a folder store and of a SQLite database "
+        "(MB): an archive whose files and rows, at the sizes its manifest declares, do not fit with this much to "
+        "spare is refused before anything is written (V3D_RESTORE_SPARE_MB).")
     max_json_kb: float = Field(1024.0, gt=0, description="Largest request body that is not an upload (JSON), in KB "
                                                        "(2^10 bytes): 413 before it is parsed (V3D_MAX_JSON_KB).")
     max_upload_mb: float = Field(2048.0, gt=0, description="Largest upload accepted (MB, 2^20 bytes), counted while "

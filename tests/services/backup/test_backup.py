@@ -325,3 +325,150 @@ def _fresh_settings() -> Iterator[None]:
     get_settings.cache_clear()
     yield
     get_settings.cache_clear()
+
+
+def test_jobs_an_archive_held_queued_or_running_are_kept_failed_never_run_here(tmp_path, monkeypatch):
+    """A job row names the machine that made it (an import's folder, an upload to clean up): restored elsewhere, a
+    queued or running one is failed with words, and no runner of the target claims it."""
+    from app.db.models import Job, JobState
+    from app.services.backup.restore import NOT_RUN_HERE
+    from app.services.jobs import runner as jobs
+
+    env = deployment(tmp_path / "source")
+    migrate_new_database(env["V3D_DATABASE_URL"])
+    engine = make_engine(env["V3D_DATABASE_URL"])
+    with Session(engine) as session:
+        for state in (JobState.QUEUED, JobState.RUNNING, JobState.DONE):
+            session.add(Job(kind="import", state=state, owner="elsewhere:1:t" if state is JobState.RUNNING else None,
+                            params={"kind": "soccernet-v3", "path": "/home/someone", "upload": True}))
+        session.commit()
+    engine.dispose()
+    archive = tmp_path / "a.zip"
+    assert invoke(env, monkeypatch, "backup", str(archive)).exit_code == 0
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0 and "2 job(s)" in result.output, result.output
+    stored = rows(target["V3D_DATABASE_URL"])["jobs"]
+    assert [(j["state"], j["message"]) for j in stored] == [
+        (JobState.FAILED, NOT_RUN_HERE), (JobState.FAILED, NOT_RUN_HERE), (JobState.DONE, None)]
+    settings = Settings(_env_file=None, database_url=target["V3D_DATABASE_URL"])
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    try:
+        from app.db.session import make_session_factory
+
+        assert jobs.claim_next(make_session_factory(engine), "here:1:t", settings) is None
+    finally:
+        engine.dispose()
+
+
+def forged(archive: Path, target: Path, change: Any, declared: dict[str, int] | None = None) -> Path:
+    """``archive`` changed by hand as an attacker would: ``change(members, manifest)`` edits the members' bytes
+    (name -> bytes) and the manifest (a dict), then every member's SHA-256 and size are redone to match (so the
+    restore itself is tested, not the digest), but the sizes ``declared`` (name -> bytes), which the manifest says
+    instead."""
+    import hashlib
+
+    with zipfile.ZipFile(archive) as zin:
+        manifest = json.loads(zin.read(MANIFEST))
+        members = {n: zin.read(n) for n in zin.namelist() if n != MANIFEST}
+    change(members, manifest)
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name, data in members.items():
+            zout.writestr(name, data)
+            manifest["members"][name] = {"sha256": hashlib.sha256(data).hexdigest(),
+                                         "size": (declared or {}).get(name, len(data))}
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    return target
+
+
+def _nothing_written(target: dict[str, str]) -> bool:
+    return (not Path(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")).exists()
+            and not Path(target["V3D_STORAGE_URL"].removeprefix("file://")).exists())
+
+
+def test_a_member_larger_than_its_manifest_declares_is_refused_before_writing(archive, tmp_path, monkeypatch):
+    """A store member that inflates to 8 MiB (the review's was 2 GiB: the bound is the same byte) while the manifest
+    declares 4,096 bytes, its digest redone: refused naming it, nothing written."""
+    with zipfile.ZipFile(archive) as zf:
+        name = next(n for n in zf.namelist() if n.startswith(("store/", "local/")))
+
+    def inflate(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        members[name] = bytes(8 << 20)
+
+    hacked = forged(archive, tmp_path / "bomb.zip", inflate, declared={name: 4096})
+    assert hacked.stat().st_size < 1 << 20  # zeros deflate a thousandfold
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and f"{name}: the zip says it holds 8,388,608 bytes, the manifest 4,096" in \
+        result.output and "nothing was restored" in result.output, result.output
+    assert _nothing_written(target)
+
+
+def test_an_archive_that_does_not_fit_the_disk_is_refused_before_writing(archive, tmp_path, monkeypatch):
+    target = deployment(tmp_path / "target")
+    result = invoke({**target, "V3D_RESTORE_SPARE_MB": str(1 << 40)}, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 2 and "V3D_RESTORE_SPARE_MB" in result.output and "MB free" in result.output, \
+        result.output
+    assert _nothing_written(target)
+
+
+def test_a_row_longer_than_the_bound_is_refused_at_the_bound(archive, tmp_path, monkeypatch):
+    """A table member of one 2 MiB line (the review's was 1.5 GiB), the bound 1 MiB: refused naming the member, the
+    line and the setting, with no more than the bound held."""
+    def long_row(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        members["tables/audit_entries.jsonl"] = b"[" + b" " * (2 << 20) + b"]\n"
+
+    hacked = forged(archive, tmp_path / "long.zip", long_row)
+    target = deployment(tmp_path / "target")
+    result = invoke({**target, "V3D_RESTORE_MAX_LINE_MB": "1"}, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and "tables/audit_entries.jsonl: line 1 is longer than 1,048,576 bytes" in \
+        result.output and "V3D_RESTORE_MAX_LINE_MB" in result.output, result.output
+
+
+@pytest.mark.parametrize("column, value", [("image_root", "/etc"), ("image_root", "elsewhere"),
+                                           ("image_path", "/etc/hostname"), ("image_zip", "../../secret.zip")])
+def test_a_frame_naming_a_file_outside_the_archive_is_refused_in_words(archive, tmp_path, monkeypatch, column, value):
+    def point_out(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        entry = next(t for t in manifest["tables"] if t["name"] == "frames")
+        at = [c for c, _ in entry["columns"]].index(column)
+        rows_ = [json.loads(line) for line in members[entry["member"]].splitlines() if line.strip()]
+        rows_[0][at] = value
+        members[entry["member"]] = b"".join(json.dumps(r).encode() + b"\n" for r in rows_)
+
+    hacked = forged(archive, tmp_path / "out.zip", point_out)
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and "tables/frames.jsonl: frame" in result.output and value in result.output \
+        and "nothing was restored" in result.output, result.output
+    assert _nothing_written(target)
+
+
+
+def test_a_backup_is_a_secret_on_disk(source, tmp_path, monkeypatch):
+    """The archive and its ``.part`` (what a kill mid-backup leaves) are mode 0600 whatever the umask; a DEST that is
+    a symbolic link is refused, its target untouched; a ``.part`` a killed backup left is named by the next one."""
+    import os
+    import stat
+
+    from app.services.backup.archive import ArchiveWriter, Manifest
+
+    old = os.umask(0o022)
+    try:
+        part = tmp_path / ".killed.zip.part"
+        ArchiveWriter(part, Manifest("x", "x", "b", "t", "sqlite")).member("tables/x.jsonl", True).write(b"[1]\n")
+        assert stat.S_IMODE(part.stat().st_mode) == 0o600  # as a SIGKILL here leaves it
+        part.chmod(0o644)  # one an older v3d left
+        target = tmp_path / "v3d-backup.zip"
+        result = invoke(source["env"], monkeypatch, "backup", str(target))
+        assert result.exit_code == 0, result.output
+        assert stat.S_IMODE(target.stat().st_mode) == 0o600
+        assert f"{part} was left by a backup that did not finish" in result.output, result.output
+        other = tmp_path / "notes.txt"
+        other.write_text("not a backup")
+        link = tmp_path / "link.zip"
+        link.symlink_to(other)
+        result = invoke(source["env"], monkeypatch, "backup", str(link))
+        assert result.exit_code == 1 and "symbolic link" in result.output, result.output
+        assert other.read_text() == "not a backup" and link.is_symlink()
+    finally:
+        os.umask(old)
