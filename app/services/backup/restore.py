@@ -41,6 +41,7 @@ from app.core.config import Settings, jobs_dir
 from app.core.errors import ConflictError, InvalidInputError
 from app.core.progress import Progress
 from app.datasets.files import is_safe_member
+from app.db.in_use import exclusive
 from app.db.session import (
     RESTORING_TABLE,
     V3dSession,
@@ -147,29 +148,38 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
         with zipfile.ZipFile(path) as zf:
             _check_frame_files(zf, manifest, max_line)
         _check_room(manifest, writes, settings, storage)
-        engine = make_engine(settings.database_url)
-        try:
-            label = archive if archive.startswith("s3://") else str(Path(archive).expanduser().resolve())
-            _check_target(engine, label, replace)
-            _mark(engine, label)
-            report = RestoreReport(manifest=manifest)
-            with zipfile.ZipFile(path) as zf:
-                _rebuild_schema(engine, settings.database_url, manifest.schema_revision)
-                report.rows = _insert_rows(engine, zf, manifest, progress, max_line)
-                report.jobs_not_run = _fail_unfinished_jobs(engine)
-                report.objects = _write_store(zf, storage, writes, progress)
-                report.missing_roots = _name_local_roots(engine, manifest, settings)
-            upgrade_database(settings.database_url, "head", restoring=True)
-            _advance_sequences(engine)
-            with V3dSession(engine) as session:
-                refresh_statistics(session)
-            _unmark(engine)
-        finally:
-            engine.dispose()
+        with exclusive(settings.database_url):  # no server or job runner uses it, and none starts meanwhile
+            report = _restore_into(archive, path, manifest, settings, storage, writes, replace, max_line, progress)
     finally:
         if temporary:
             path.unlink(missing_ok=True)
     report.seconds = round(time.monotonic() - started, 3)
+    return report
+
+
+def _restore_into(archive: str, path: Path, manifest: Manifest, settings: Settings, storage: Storage,
+                  writes: list[tuple[str, str]], replace: bool, max_line: int,
+                  progress: Optional[Progress]) -> RestoreReport:
+    """Steps 3 to 5 of the module docstring, the archive verified and checked."""
+    engine = make_engine(settings.database_url)
+    try:
+        label = archive if archive.startswith("s3://") else str(Path(archive).expanduser().resolve())
+        _check_target(engine, label, replace)
+        _mark(engine, label)
+        report = RestoreReport(manifest=manifest)
+        with zipfile.ZipFile(path) as zf:
+            _rebuild_schema(engine, settings.database_url, manifest.schema_revision)
+            report.rows = _insert_rows(engine, zf, manifest, progress, max_line)
+            report.jobs_not_run = _fail_unfinished_jobs(engine)
+            report.objects = _write_store(zf, storage, writes, progress)
+            report.missing_roots = _name_local_roots(engine, manifest, settings)
+        upgrade_database(settings.database_url, "head", restoring=True)
+        _advance_sequences(engine)
+        with V3dSession(engine) as session:
+            refresh_statistics(session)
+        _unmark(engine)
+    finally:
+        engine.dispose()
     return report
 
 
@@ -340,6 +350,14 @@ def _rebuild_schema(engine: Engine, url: str, revision: str) -> None:
         warnings.simplefilter("ignore", sa.exc.SAWarning)  # an index on an expression: dropped with its table
         meta.reflect(conn)
         meta.drop_all(conn, tables=[t for t in meta.sorted_tables if t.name != RESTORING_TABLE])
+        if engine.dialect.name == "postgresql":
+            # the migrations' own functions (the audit's append-only triggers) outlive their tables: dropped too, or
+            # migrating again fails on them; an extension's functions are left alone
+            for (signature,) in conn.execute(sa.text(
+                    "SELECT p.oid::regprocedure::text FROM pg_proc p JOIN pg_namespace n ON n.oid = p.pronamespace "
+                    "WHERE n.nspname = current_schema() AND NOT EXISTS (SELECT 1 FROM pg_depend d WHERE "
+                    "d.objid = p.oid AND d.deptype = 'e')")).all():
+                conn.execute(sa.text(f"DROP FUNCTION IF EXISTS {signature} CASCADE"))
     upgrade_database(url, revision, restoring=True)
 
 

@@ -472,3 +472,84 @@ def test_a_backup_is_a_secret_on_disk(source, tmp_path, monkeypatch):
         assert other.read_text() == "not a backup" and link.is_symlink()
     finally:
         os.umask(old)
+
+
+def _served_target(tmp_path: Path, url: str | None = None) -> tuple[dict[str, str], Settings]:
+    """A target deployment holding data (a user), with the settings a server of it runs with."""
+    target = deployment(tmp_path / "target")
+    if url is not None:
+        target["V3D_DATABASE_URL"] = url
+    migrate_new_database(target["V3D_DATABASE_URL"])
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    with Session(engine) as session:
+        create_user(session, "kept", "reviewer", PASSWORD)
+    engine.dispose()
+    return target, Settings(_env_file=None, database_url=target["V3D_DATABASE_URL"],
+                            storage_url=target["V3D_STORAGE_URL"], jobs_dir=Path(target["V3D_JOBS_DIR"]))
+
+
+def _holder(url: str) -> Any:
+    """Another process holding the database's in-use lock as a server does (``app.db.in_use.using``), ready."""
+    import subprocess
+    import sys
+
+    code = ("import sys, time\nfrom app.db.in_use import using\nwith using(sys.argv[1], 'server'):\n"
+            "    print('ready', flush=True)\n    time.sleep(600)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code, url], stdout=subprocess.PIPE,
+                            cwd=Path(__file__).resolve().parents[3])
+    assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
+    return proc
+
+
+def test_a_restore_refuses_a_database_a_server_uses_and_a_dead_servers_lock_does_not_block(archive, tmp_path,
+                                                                                             monkeypatch):
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+
+    target, settings = _served_target(tmp_path)
+    url = target["V3D_DATABASE_URL"]
+    held = rows(url)
+    with TestClient(create_app(settings)):  # a served app (its lifespan runs)
+        result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+        assert result.exit_code == 2 and "in use by a v3d server or job runner" in result.output \
+            and "fuser -v" in result.output and "Nothing was restored" in result.output, result.output
+        assert rows(url) == held
+    server = _holder(url)  # a server of another process, then killed: its lock goes with it
+    try:
+        assert invoke(target, monkeypatch, "restore", "--replace", str(archive)).exit_code == 2
+    finally:
+        server.kill()
+        server.wait()
+    result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+    assert result.exit_code == 0, result.output
+    assert [u["name"] for u in rows(url)["users"]] == ["ana"]
+
+
+@pytest.mark.postgres
+def test_a_restore_refuses_a_postgresql_database_a_server_uses(archive, tmp_path, monkeypatch, pg_url):
+    import time
+
+    target = {**deployment(tmp_path / "target"), "V3D_DATABASE_URL": pg_url}
+    server = _holder(pg_url)  # a server of an empty database (it may serve one)
+    try:
+        result = invoke(target, monkeypatch, "restore", str(archive))
+        assert result.exit_code == 2 and "advisory lock" in result.output and "v3d server" in result.output, \
+            result.output
+    finally:
+        server.kill()
+        server.wait()
+    deadline = time.monotonic() + 20  # PostgreSQL ends the dead client's session once its socket closes
+    while (result := invoke(target, monkeypatch, "restore", str(archive))).exit_code == 2 \
+            and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.postgres
+def test_a_restore_replaces_a_migrated_postgresql_database(archive, tmp_path, monkeypatch, pg_url):
+    """--replace onto a PostgreSQL database that holds data: the migrations' functions go with its tables."""
+    target, _settings = _served_target(tmp_path, pg_url)
+    result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+    assert result.exit_code == 0, result.output
+    assert [u["name"] for u in rows(pg_url)["users"]] == ["ana"]
