@@ -19,8 +19,10 @@ The order, so that nothing is written unless the whole can be, and a restore cut
    migrated to head, PostgreSQL's sequences moved past the ids restored; then the mark is dropped. Jobs the archive
    held queued or running are kept failed, never run here (:data:`NOT_RUN_HERE`).
 
-Passwords, API tokens and the session-signing key are rows: they keep working. Times, ids, versions (ETags), release
-documents and hashes are restored as stored, so every answer and every release export is the same.
+Passwords, API tokens and the session-signing key are rows: they keep working, and whoever made the archive is an
+admin of the target. ``--new-secrets`` (an archive someone else made) restores the data with a new session key, every
+API token revoked and every account but the restoring admin's disabled (``users.take_over``). Times, ids, versions
+(ETags), release documents and hashes are restored as stored, so every answer and every release export is the same.
 """
 from __future__ import annotations
 
@@ -51,6 +53,7 @@ from app.db.session import (
     unfinished_restore,
     upgrade_database,
 )
+from app.services.accounts.users import TakenOver, take_over
 from app.services.backup.archive import MANIFEST, BrokenArchive, Manifest, lines, s3_location, verify_archive
 from app.services.backup.rows import decoder, write_type
 from app.services.backup.snapshot import BACKUPS, SKIPPED_TABLES
@@ -83,6 +86,7 @@ class RestoreReport:
     missing_roots: list[str] = field(default_factory=list)
     seconds: float = 0.0
     jobs_not_run: int = 0
+    taken_over: Optional[TakenOver] = None
 
 
 def fetch_archive(archive: str, settings: Settings) -> tuple[Path, bool]:
@@ -124,8 +128,10 @@ def verify(archive: str, settings: Settings, progress: Optional[Progress] = None
 
 
 def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
-                   progress: Optional[Progress] = None) -> RestoreReport:
-    """Restore ``archive`` into ``settings``' database and store (module docstring).
+                   progress: Optional[Progress] = None, new_secrets: Optional[tuple[str, str]] = None) -> RestoreReport:
+    """Restore ``archive`` into ``settings``' database and store (module docstring). ``new_secrets`` (an admin's name
+    and password): an archive someone else made, whose accounts, tokens and session key must not work here
+    (``app.services.accounts.users.take_over``, before the database is served; its report in ``taken_over``).
 
     Raises:
         BrokenArchive: the archive is not whole, a member is not the size its manifest declares, a row is longer
@@ -149,7 +155,8 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
             _check_frame_files(zf, manifest, max_line)
         _check_room(manifest, writes, settings, storage)
         with exclusive(settings.database_url):  # no server or job runner uses it, and none starts meanwhile
-            report = _restore_into(archive, path, manifest, settings, storage, writes, replace, max_line, progress)
+            report = _restore_into(archive, path, manifest, settings, storage, writes, replace, max_line, progress,
+                                   new_secrets)
     finally:
         if temporary:
             path.unlink(missing_ok=True)
@@ -159,7 +166,7 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
 
 def _restore_into(archive: str, path: Path, manifest: Manifest, settings: Settings, storage: Storage,
                   writes: list[tuple[str, str]], replace: bool, max_line: int,
-                  progress: Optional[Progress]) -> RestoreReport:
+                  progress: Optional[Progress], new_secrets: Optional[tuple[str, str]]) -> RestoreReport:
     """Steps 3 to 5 of the module docstring, the archive verified and checked."""
     engine = make_engine(settings.database_url)
     try:
@@ -177,6 +184,8 @@ def _restore_into(archive: str, path: Path, manifest: Manifest, settings: Settin
         _advance_sequences(engine)
         with V3dSession(engine) as session:
             refresh_statistics(session)
+            if new_secrets is not None:  # while the database is still marked: never served with the archive's keys
+                report.taken_over = take_over(session, *new_secrets)
         _unmark(engine)
     finally:
         engine.dispose()

@@ -553,3 +553,40 @@ def test_a_restore_replaces_a_migrated_postgresql_database(archive, tmp_path, mo
     result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
     assert result.exit_code == 0, result.output
     assert [u["name"] for u in rows(pg_url)["users"]] == ["ana"]
+
+
+@pytest.mark.parametrize("admin", ["boss", "ana"])
+def test_new_secrets_void_the_archives_keys_tokens_and_accounts_but_the_restoring_admin(source, archive, tmp_path,
+                                                                                         monkeypatch, admin):
+    """An archive someone else made: its session key, its tokens and its accounts (the author's admin among them) do
+    not work on the target; the restoring admin (new, or an account of the archive taken over) does, with the password
+    given and the one token printed."""
+    from app.db.models import ServerSecret
+
+    target = deployment(tmp_path / "target")
+    for name, value in target.items():
+        monkeypatch.setenv(name, value)
+    get_settings.cache_clear()
+    try:
+        result = CliRunner().invoke(cli_main(), ["restore", "--new-secrets", admin, "--password-stdin",
+                                                 str(archive)], input="a new long password\n")
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 0 and "1 API token(s) revoked" in result.output, result.output
+    token = result.stdout.strip().splitlines()[-1]
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    source_engine = make_engine(source["url"])
+    try:
+        with Session(engine) as session, Session(source_engine) as old:
+            assert resolve_token(session, source["token"]) is None
+            assert authenticate_password(session, "ana", PASSWORD) is None
+            user = resolve_token(session, token)
+            assert isinstance(user, User) and user.name == admin and user.role.value == "admin"
+            assert authenticate_password(session, admin, "a new long password") is not None
+            disabled = {u.name: u.disabled for u in session.scalars(sa.select(User))}
+            assert disabled == ({"ana": True, "boss": False} if admin == "boss" else {"ana": False})
+            archived = old.get(ServerSecret, "session")
+            assert archived is not None and session.get(ServerSecret, "session") is None  # made anew at the next start
+    finally:
+        engine.dispose()
+        source_engine.dispose()
