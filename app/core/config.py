@@ -370,6 +370,10 @@ class Settings(BaseSettings):
         24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
         "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "
         "asked for (then 404).")
+    backups_kept: int = Field(
+        7, ge=1, description="How many archives of backup jobs (POST /api/backups) the store keeps: the oldest are "
+        "removed once a new one is complete; a new one is refused (409) while the disk has less room than the last "
+        "one took (V3D_BACKUPS_KEPT).")
     restore_max_line_mb: float = Field(
         64.0, gt=0, description="Longest table row a restore reads from an archive (MB, 2^20 bytes: one line of a "
         "tables/*.jsonl member, a release document the largest): a longer one refuses the restore (exit 2) at its "

@@ -5,6 +5,7 @@ what it answered, within the time bound and without reading past the size bound;
 error for each. CI runs them at small bounds (settings); the slow tier at the defaults, with the review's sizes."""
 from __future__ import annotations
 
+import gzip
 import json
 import os
 import subprocess
@@ -52,6 +53,8 @@ class _Hostile(BaseHTTPRequestHandler):
             self._send(200, b"<html><body>Sign in to the proxy</body></html>", "text/html")
         elif mode == "shape":
             self._send(200, json.dumps({"items": "not a list", "total": "many"}).encode())
+        elif mode == "gzip-bomb":  # 8 MiB of JSON-looking zeros in a few KiB
+            self._send(200, gzip.compress(b"[" + b"0," * (4 << 20)), **{"Content-Encoding": "gzip"})
         elif mode == "redirect":
             self._send(302, b"", **{"Location": "http://elsewhere.example/api/users"})
         else:  # a body without a length: "huge" fast and ending, "endless" fast forever, "drip" a byte at a time
@@ -144,7 +147,7 @@ def test_the_client_raises_its_own_typed_error_for_each(hostile) -> None:
     from v3d_client import AnswerTooLarge, AnswerTooSlow, Client, NotJSON, Redirected, WrongShape
 
     expected = {"html": NotJSON, "shape": WrongShape, "redirect": Redirected, "huge": AnswerTooLarge,
-                "endless": AnswerTooLarge, "drip": AnswerTooSlow}
+                "endless": AnswerTooLarge, "drip": AnswerTooSlow, "gzip-bomb": AnswerTooLarge}
     for mode, error in expected.items():
         hostile.mode = mode
         with Client(_url(hostile), "a-token", timeout=1, total_timeout_s=1, max_answer_bytes=1 << 20) as client:

@@ -12,6 +12,7 @@ when complete, removed ``Settings.export_keep_hours`` later).
 from __future__ import annotations
 
 import contextlib
+import re
 import shutil
 from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
@@ -33,7 +34,7 @@ from app.services.exports.formats import NOTHING, RELEASE_EXPORTS, export_format
 from app.services.jobs.summary import summary
 from app.services.storage import storage_for
 from app.services.storage.datasets import UPLOADS, DatasetFiles, rekey_frames
-from app.services.storage.stores import checked_key
+from app.services.storage.stores import Storage, StoredObject, checked_key
 from app.services.transfer import data_root
 from app.services.transfer.import_formats import import_format, stored_games_refusal
 
@@ -365,8 +366,9 @@ def run_backup(session: Session, params: dict[str, Any], settings: Settings, pro
     """Back up the deployment as ``v3d backup`` does (``app.services.backup.snapshot.write_backup``; ``params
     ["local_files"]``, default true: the files of datasets read from this machine's folders too) to the job's archive
     ``job-<id>-backup.zip``, kept in the store as ``backups/<file>`` (an admin downloads it: it holds password and
-    token hashes). Its result: the archive's file, size, tables, rows, files and the count of named files not found.
-    Run again after a kill, it writes the archive again from a new snapshot."""
+    token hashes); once it is complete, the store's archives beyond the ``V3D_BACKUPS_KEPT`` newest are removed
+    (:func:`prune_backups`). Its result: the archive's file, size, tables, rows, files and the count of named files
+    not found. Run again after a kill, it writes the archive again from a new snapshot."""
     bind = session.get_bind()
     engine = bind if isinstance(bind, Engine) else bind.engine
     session.rollback()  # the snapshot reads in a transaction of its own
@@ -378,10 +380,61 @@ def run_backup(session: Session, params: dict[str, Any], settings: Settings, pro
     if storage.local_path(key) != target:  # a store of its own: the archive goes there, the scratch copy away
         storage.put_file(key, target)
         target.unlink(missing_ok=True)
+    prune_backups(storage, settings.backups_kept)  # only now that the new one is complete
     out = report.as_result()
     out.pop("destination")  # a path of the server's
     return {**out, "missing": len(report.missing), "file": name, "media_type": "application/zip",
             "filename": f"v3d-backup-{job_id}.zip"}
+
+
+#: The name of a backup job's archive in the store's ``backups`` folder, its job's id captured.
+_BACKUP_NAME = re.compile(r"job-(\d+)-backup\.zip")
+
+
+def _stored_backups(storage: Storage) -> list[StoredObject]:
+    """The backup jobs' archives of the store (``backups/job-<id>-backup.zip``), newest job first."""
+    found = [(int(m.group(1)), o) for o in storage.list(BACKUPS)
+             if (m := _BACKUP_NAME.fullmatch(o.key.removeprefix(f"{BACKUPS}/"))) is not None]
+    return [o for _, o in sorted(found, key=lambda pair: (pair[0], pair[1].modified), reverse=True)]
+
+
+
+def prune_backups(storage: Storage, kept: int) -> list[str]:
+    """Remove the backup jobs' archives of ``storage`` beyond the ``kept`` newest (``V3D_BACKUPS_KEPT``); the keys
+    removed (their jobs' downloads answer 404 then, as an export's past ``V3D_EXPORT_KEEP_HOURS``)."""
+    old = [o.key for o in _stored_backups(storage)[kept:]]
+    for key in old:
+        storage.delete(key)
+    return old
+
+
+def backup_room_refusal(settings: Settings) -> str | None:
+    """Why a new backup job cannot be written, in words, or None: the disk of the jobs folder (where the archive is
+    written first) or of a folder store (where it is kept) has less free space than the last backup's archive took.
+    A remote store is not measured from here."""
+    storage = storage_for(settings)
+    last = next(iter(_stored_backups(storage)), None)
+    if last is None:
+        return None
+    folders = [jobs_dir(settings) / BACKUPS]
+    own = storage.local_path(BACKUPS)
+    if own is not None:
+        folders.append(own)
+    seen: set[int] = set()
+    for folder in folders:
+        existing = folder.resolve()
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        device = existing.stat().st_dev
+        if device in seen:
+            continue
+        seen.add(device)
+        free = shutil.disk_usage(existing).free
+        if free < last.size:
+            return (f"the last backup's archive took {last.size / 2**20:,.1f} MB and the disk of {existing} has "
+                    f"{free / 2**20:,.1f} MB free: no backup was queued. Free some space, or keep fewer archives "
+                    f"(V3D_BACKUPS_KEPT, {settings.backups_kept} now)")
+    return None
 
 
 #: kind -> work (``app.services.jobs.runner.Work``).

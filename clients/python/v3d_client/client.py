@@ -453,12 +453,19 @@ class Client:
                     raise self._too_slow(method, path, response.status_code)
         except httpx.TimeoutException as exc:
             raise self._too_slow(method, path, response.status_code) from exc
+        except httpx.DecodingError as exc:
+            raise NotJSON(f"{self.url} answered {method} {path} with {response.status_code} in an encoding that "
+                          f"does not decode ({response.headers.get('content-encoding')}: {exc})",
+                          response.status_code) from None
         except httpx.TransportError as exc:
             raise Unreachable(f"{self.url}: {type(exc).__name__} while reading the answer to {method} {path}: "
                               f"{exc}") from exc
         finally:
             response.close()
-        return httpx.Response(response.status_code, headers=response.headers, content=b"".join(chunks),
+        # the body as decoded: its headers without the encoding and length of the bytes that came
+        headers = [(k, v) for k, v in response.headers.multi_items()
+                   if k.lower() not in ("content-encoding", "content-length", "transfer-encoding")]
+        return httpx.Response(response.status_code, headers=headers, content=b"".join(chunks),
                               request=response.request)
 
     def _too_large(self, method: str, path: str, status: int, said: str) -> AnswerTooLarge:
