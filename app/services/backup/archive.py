@@ -253,13 +253,16 @@ def open_archive(path: Path) -> zipfile.ZipFile:
                             f"file") from None
 
 
-def verify_archive(path: Path, progress: Any = None) -> Manifest:
+def verify_archive(path: Path, progress: Any = None, max_line: Optional[int] = None) -> Manifest:
     """Check every member of the archive at ``path`` against its manifest (module docstring); its manifest.
 
     ``progress(stage, done, total)`` (``app.core.progress.Progress``), when given, is told the bytes hashed.
+    ``max_line``: the longest line a table member may hold (bytes; :class:`LineTooLong` past it), checked in the same
+    read, so a restore refuses such a table before it writes anything.
 
     Raises:
-        BrokenArchive: the first member that fails, named (missing, unlisted, unreadable, or another digest).
+        BrokenArchive: the first member that fails, named (missing, unlisted, unreadable, another digest or size, a
+            line past ``max_line``).
         FileNotFoundError: no such file.
     """
     with open_archive(path) as archive:
@@ -269,6 +272,7 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
         if unlisted:
             raise BrokenArchive(f"{unlisted[0]}: in the archive but not in its manifest", unlisted[0])
         sizes = {name: declared_size(name, expected) for name, expected in manifest.members.items()}
+        tables = {t.member for t in manifest.tables}
         total = sum(sizes.values())
         done = 0
         for name, expected in manifest.members.items():
@@ -280,6 +284,7 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
                                     f"manifest {size:,}: the member is broken or was changed", name)
             digest = hashlib.sha256()
             read = 0
+            lines_of = _LineBound(name, max_line) if max_line is not None and name in tables else None
             try:
                 with archive.open(name) as stream:
                     # never more than one byte past what the manifest declares: a member that inflates beyond it
@@ -290,6 +295,8 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
                             raise BrokenArchive(f"{name}: holds more than the {size:,} bytes its manifest declares "
                                                 f"(refused at the first byte past them)", name)
                         digest.update(chunk)
+                        if lines_of is not None:
+                            lines_of.feed(chunk)
                         done += len(chunk)
                         if progress is not None:
                             progress("verify", done, total)
@@ -333,6 +340,27 @@ def _check_manifest_names(manifest: Manifest) -> None:
 
 class LineTooLong(BrokenArchive):
     """A table member's line (one row) longer than a restore reads (``V3D_RESTORE_MAX_LINE_MB``)."""
+
+
+class _LineBound:
+    """Follows a member's lines through the chunks it is read in, holding no line: refuses one longer than
+    ``max_bytes`` (:class:`LineTooLong`, its number named) as soon as its bytes are seen."""
+
+    def __init__(self, member: str, max_bytes: int) -> None:
+        self.member, self.max_bytes = member, max_bytes
+        self.run = 0  # bytes of the line being read, so far
+        self.number = 1
+
+    def feed(self, chunk: bytes) -> None:
+        parts = chunk.split(b"\n")
+        for i, part in enumerate(parts):
+            self.run += len(part)
+            if self.run > self.max_bytes:
+                raise LineTooLong(f"{self.member}: line {self.number} is longer than {self.max_bytes:,} bytes, the "
+                                  f"longest row a restore reads (V3D_RESTORE_MAX_LINE_MB)", self.member)
+            if i < len(parts) - 1:  # a newline ends it
+                self.run = 0
+                self.number += 1
 
 
 def lines(archive: zipfile.ZipFile, member: str, max_bytes: int) -> Iterator[bytes]:

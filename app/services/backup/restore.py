@@ -119,7 +119,7 @@ def verify(archive: str, settings: Settings, progress: Optional[Progress] = None
     """
     path, temporary = fetch_archive(archive, settings)
     try:
-        manifest = verify_archive(path, progress)
+        manifest = verify_archive(path, progress, max_line_bytes(settings))
     finally:
         if temporary:
             path.unlink(missing_ok=True)
@@ -145,12 +145,12 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
     started = time.monotonic()
     path, temporary = fetch_archive(archive, settings)
     try:
-        manifest = verify_archive(path, progress)
+        max_line = max_line_bytes(settings)
+        manifest = verify_archive(path, progress, max_line)
         _known_revision(manifest)
         storage = storage_for(settings)
         writes = _store_writes(manifest)
         _check_keys(storage, writes)
-        max_line = max_line_bytes(settings)
         with zipfile.ZipFile(path) as zf:
             _check_frame_files(zf, manifest, max_line)
         _check_room(manifest, writes, settings, storage)

@@ -423,6 +423,7 @@ def test_a_row_longer_than_the_bound_is_refused_at_the_bound(archive, tmp_path, 
     result = invoke({**target, "V3D_RESTORE_MAX_LINE_MB": "1"}, monkeypatch, "restore", str(hacked))
     assert result.exit_code == 2 and "tables/audit_entries.jsonl: line 1 is longer than 1,048,576 bytes" in \
         result.output and "V3D_RESTORE_MAX_LINE_MB" in result.output, result.output
+    assert _nothing_written(target)
 
 
 @pytest.mark.parametrize("column, value", [("image_root", "/etc"), ("image_root", "elsewhere"),
@@ -590,3 +591,64 @@ def test_new_secrets_void_the_archives_keys_tokens_and_accounts_but_the_restorin
     finally:
         engine.dispose()
         source_engine.dispose()
+
+
+def _forged_big(archive: Path, target: Path, member: str, pieces: Any, declared: int) -> Path:
+    """``archive`` with ``member`` (new or replaced) written from the byte strings ``pieces`` as they come, never
+    whole in memory, its digest redone and its size declared ``declared``; the rest copied."""
+    import hashlib
+
+    with zipfile.ZipFile(archive) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        manifest = json.loads(zin.read(MANIFEST))
+        for name in zin.namelist():
+            if name not in (MANIFEST, member):
+                zout.writestr(name, zin.read(name))
+        digest = hashlib.sha256()
+        info = zipfile.ZipInfo(member)
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with zout.open(info, "w", force_zip64=True) as out:
+            for piece in pieces:
+                digest.update(piece)
+                out.write(piece)
+        manifest["members"][member] = {"sha256": digest.hexdigest(), "size": declared}
+        for entry in manifest["members"].values():
+            entry.pop("stored_sha256", None)
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    return target
+
+
+@pytest.mark.slow
+def test_the_reviews_full_size_archives_are_refused_with_bounded_memory(archive, tmp_path, monkeypatch):
+    """The review's sizes at the default settings: a store member inflating to 2 GiB while declaring 4,096 bytes, and
+    a table member of one 1.5 GiB line (its size declared truly): both refused naming the member, nothing written, the
+    restore's memory well below the line's size."""
+    import resource
+    import subprocess
+    import sys
+
+    with zipfile.ZipFile(archive) as zf:
+        store = next(n for n in zf.namelist() if n.startswith(("store/", "local/")))
+    zeros = bytes(1 << 24)
+    bomb = _forged_big(archive, tmp_path / "bomb.zip", store, (zeros for _ in range(128)), 4096)  # 2 GiB
+    line = (b"[" if i == 0 else (b"]\n" if i == 96 else b" " * (1 << 24)) for i in range(97))  # 1.48 GiB
+    long_row = _forged_big(archive, tmp_path / "long.zip", "tables/audit_entries.jsonl", line, (95 << 24) + 3)
+    assert bomb.stat().st_size < 16 << 20 and long_row.stat().st_size < 16 << 20
+    for hacked, words in ((bomb, f"{store}: the zip says it holds 2,147,483,648 bytes, the manifest 4,096"),
+                          (long_row, "tables/audit_entries.jsonl: line 1 is longer than 67,108,864 bytes")):
+        target = deployment(tmp_path / f"target-{hacked.stem}")
+        done = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "restore", str(hacked)],
+                              env={**__import__("os").environ, **target}, capture_output=True, text=True,
+                              timeout=600, cwd=Path(__file__).resolve().parents[3])
+        assert done.returncode == 2 and words in done.stderr, done.stderr
+        assert _nothing_written(target)
+    assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss < 600 << 10  # KiB: the largest restore's peak
+
+
+def test_a_lines_length_is_followed_across_the_chunks_it_is_read_in():
+    from app.services.backup.archive import LineTooLong, _LineBound
+
+    bound = _LineBound("tables/t.jsonl", 5)
+    for chunk in (b"abc", b"de\n", b"", b"\nab", b"cde\nx"):  # lines of 5, 0, 5 and 1 bytes: each within
+        bound.feed(chunk)
+    with pytest.raises(LineTooLong, match="tables/t.jsonl: line 4 is longer than 5 bytes"):
+        bound.feed(b"yzabc")  # the fourth line: 6 bytes
