@@ -129,8 +129,9 @@ def _run(server: _Server, *args: str, within_s: float | None = None, **env: str)
 
 @pytest.mark.parametrize("mode, words", [
     ("html", "not JSON"), ("html-health", "not JSON"), ("shape", "not the shape of its route"),
-    ("redirect", "302"), ("huge", "more than 1,048,576 bytes"), ("endless", "more than 1,048,576 bytes"),
-    ("drip", "did not answer GET /api/users completely within 1 s")])
+    ("redirect", "302"), ("huge", "more than 1,048,576 bytes"),
+    pytest.param("endless", "more than 1,048,576 bytes", marks=pytest.mark.processes),
+    pytest.param("drip", "did not answer GET /api/users completely within 1 s", marks=pytest.mark.processes)])
 def test_the_command_line_ends_in_one_error_line_naming_the_server(hostile, mode: str, words: str) -> None:
     hostile.mode = mode
     # a body that never ends would hold this process forever without the bounds: those run in a process of their own
@@ -160,6 +161,7 @@ def test_the_client_raises_its_own_typed_error_for_each(hostile) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.processes
 @pytest.mark.parametrize("mode", ["endless", "drip", "huge"])
 def test_at_the_default_bounds_a_hostile_server_is_left_within_a_minute_and_500_mb(hostile, mode: str) -> None:
     """The review's sizes at the default settings: a 10 MB body that is no JSON (read whole: below the 64 MB bound),

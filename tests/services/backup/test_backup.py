@@ -502,6 +502,7 @@ def _holder(url: str) -> Any:
     return proc
 
 
+@pytest.mark.processes
 def test_a_restore_refuses_a_database_a_server_uses_and_a_dead_servers_lock_does_not_block(archive, tmp_path,
                                                                                              monkeypatch):
     from fastapi.testclient import TestClient
@@ -528,6 +529,7 @@ def test_a_restore_refuses_a_database_a_server_uses_and_a_dead_servers_lock_does
 
 
 @pytest.mark.postgres
+@pytest.mark.processes
 def test_a_restore_refuses_a_postgresql_database_a_server_uses(archive, tmp_path, monkeypatch, pg_url):
     import time
 
@@ -618,6 +620,7 @@ def _forged_big(archive: Path, target: Path, member: str, pieces: Any, declared:
 
 
 @pytest.mark.slow
+@pytest.mark.processes
 def test_the_reviews_full_size_archives_are_refused_with_bounded_memory(archive, tmp_path, monkeypatch):
     """The review's sizes at the default settings: a store member inflating to 2 GiB while declaring 4,096 bytes, and
     a table member of one 1.5 GiB line (its size declared truly): both refused naming the member, nothing written, the
