@@ -75,7 +75,7 @@ class _Hostile(BaseHTTPRequestHandler):
             except OSError:  # the client hung up: what it must do
                 return
 
-    do_POST = do_GET  # noqa: N815
+    do_POST = do_GET  # noqa: N815  # http.server's name
 
 
 class _Server(ThreadingHTTPServer):
