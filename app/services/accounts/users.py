@@ -9,8 +9,8 @@
   its creation and last-use times and an optional expiry; one can be revoked alone, and disabling a user
   revokes all of its tokens for good (enabling it again does not bring them back).
 * Every change of a user or a token is audited in its own transaction (``user.create``, ``user.role``,
-  ``user.disable``, ``user.enable``, ``token.issue``, ``token.revoke``: who, when, which user and token id,
-  never a secret); ``actor`` None is the machine's owner (``cli:<os user>``).
+  ``user.disable``, ``user.enable``, ``token.issue``, ``token.revoke``, ``user.take_over``: who, when, which user
+  and token id, never a secret); ``actor`` None is the machine's owner (``cli:<os user>``).
 * The key that signs session cookies is ``V3D_SESSION_SECRET`` when set, else the ``session`` row of
   ``server_secrets`` (made by migration 0005; made again here if missing), so that several uvicorn
   workers and restarts share it.
@@ -335,7 +335,7 @@ def take_over(session: Session, admin: str, password: str) -> TakenOver:
     session-signing key dropped (a new one is made at the next start: every cookie of the archive's key is void),
     every API token revoked, every account disabled (until an admin enables it again: ``v3d users enable``) but
     ``admin``, which is an enabled admin with ``password`` and one new API token (made now when the archive has no
-    such account). Every account's sessions end. Commits.
+    such account). Every account's sessions end. Audited (``user.take_over``, by ``admin``). Commits.
 
     Raises:
         InvalidInputError: ``admin`` malformed or reserved (field ``name``), an empty password (field ``password``).
@@ -356,6 +356,8 @@ def take_over(session: Session, admin: str, password: str) -> TakenOver:
         session.execute(sa.update(User).values(session_generation=User.session_generation + 1))
         session.execute(sa.update(User).where(User.id == keep).values(
             role=UserRole.ADMIN, disabled=False, password_hash=password_hash))
+        audit.record(session, actor=admin, action="user.take_over",
+                     after={"user": admin, "tokens_revoked": revoked, "users_disabled": disabled})
     session.expire_all()
     if existing is None:
         token = create_user(session, admin, "admin", password)[1]

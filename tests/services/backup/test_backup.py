@@ -590,6 +590,10 @@ def test_new_secrets_void_the_archives_keys_tokens_and_accounts_but_the_restorin
             assert disabled == ({"ana": True, "boss": False} if admin == "boss" else {"ana": False})
             archived = old.get(ServerSecret, "session")
             assert archived is not None and session.get(ServerSecret, "session") is None  # made anew at the next start
+            from app.db.models import AuditEntry
+
+            entry = session.scalars(sa.select(AuditEntry).where(AuditEntry.action == "user.take_over")).one()
+            assert entry.actor == admin and "1 API token revoked" in entry.summary, entry.summary
     finally:
         engine.dispose()
         source_engine.dispose()
