@@ -62,6 +62,7 @@ from app.api.share import ComputeShare
 from app.core.config import Settings, get_settings
 from app.core.errors import NotFoundError
 from app.core.paths import STATIC_DIR
+from app.db.in_use import using
 from app.db.session import make_engine, make_session_factory
 from app.services.accounts.throttle import login_throttle
 from app.services.accounts.users import session_secret
@@ -140,14 +141,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(application: FastAPI) -> AsyncIterator[None]:
         if settings.gc_young_threshold:  # a served process: rarer full collections (Settings.gc_young_threshold)
             gc.set_threshold(settings.gc_young_threshold, 10, 10)
-        runner = None
-        if settings.job_runner:  # queued imports, recomputes and exports run in a thread of this process
-            runner = JobRunner(application.state.session_factory, settings)
-            runner.start()
-        application.state.job_runner = runner
-        yield
-        if runner is not None:
-            runner.stop()
+        # the database's shared in-use lock, for as long as this process serves: `v3d restore` refuses while it is
+        # held (app.db.in_use), and a restore running now refuses this start
+        with using(settings.database_url, "server"):
+            runner = None
+            if settings.job_runner:  # queued imports, recomputes and exports run in a thread of this process
+                runner = JobRunner(application.state.session_factory, settings)
+                runner.start()
+            application.state.job_runner = runner
+            yield
+            if runner is not None:
+                runner.stop()
         engine.dispose()
         health_engine.dispose()
 

@@ -109,7 +109,7 @@ def run_job_here(settings: Settings, kind: str, params: dict[str, Any]) -> tuple
                 job = jobs.submit(session, kind, params, owner=owner)
             job_id = job.id
         try:
-            final = jobs.run_job(factory, job_id, settings, owner, progress=bars)
+            final = jobs.run_job(factory, job_id, settings, owner, progress=bars, command_line=True)
         finally:
             bars.close()
     if final.state is not JobState.DONE:

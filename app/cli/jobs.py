@@ -8,6 +8,7 @@ ones a killed process left running) in this process until none is left, for a da
 """
 from __future__ import annotations
 
+import contextlib
 from typing import Annotated, Any, Optional
 
 import typer
@@ -121,11 +122,17 @@ def wait_cmd(
 @jobs_cli.command("run")
 def run_cmd(database_url: DatabaseOpt = None) -> None:
     """Run queued jobs (and stale ones) in this process until none is left; prints each outcome."""
+    from app.db.in_use import DatabaseInUse, using
     from app.services.jobs import runner as jobs
 
     settings = cli_settings(database_url, None)
     owner = jobs.owner_name(settings)
-    with session_factory(settings) as factory:
+    with contextlib.ExitStack() as stack:
+        try:  # the database's in-use lock while it runs jobs: `v3d restore` refuses meanwhile (app.db.in_use)
+            stack.enter_context(using(settings.database_url, "jobs run"))
+        except DatabaseInUse as exc:
+            raise fail(str(exc)) from None
+        factory = stack.enter_context(session_factory(settings))
         while (job_id := jobs.claim_next(factory, owner, settings)) is not None:
             job = jobs.run_job(factory, job_id, settings, owner)
             typer.echo(f"job {job.id} ({job.kind}): {job.state.value}" + (f": {job.message}" if job.message else ""))

@@ -10,7 +10,10 @@ writes it), ``release create|list|show|diff``, ``batches create|show|accept|undo
 writes nothing in its working folder but the OUT it was given. Any other command named with ``--server`` is refused
 (:func:`refuse_remote`, exit 2): it runs on the server's machine only. A refusal of the server (401, 403, 404, 409,
 413, 422) prints ``Error: <the server's words>`` and exits 2; a failed job exits as the local command does (2 for
-invalid input, else 1), as do a server that does not answer and a wait past its ``--timeout`` (1).
+invalid input, else 1), as do a server that does not answer and a wait past its ``--timeout`` (1). A server that
+answers what its route does not promise (not JSON, another shape, a redirect, more than ``V3D_REMOTE_MAX_ANSWER_MB``,
+not complete within ``V3D_REMOTE_TIMEOUT_S``) ends the command with one ``Error:`` line naming it and what it answered
+(exit 1).
 """
 from __future__ import annotations
 
@@ -69,20 +72,30 @@ def remote_client() -> Iterator[Optional["Client"]]:
     if _server["url"] is None:
         yield None
         return
-    from v3d_client import Client, JobFailed, JobTimeout, Unreachable, V3DError
+    from app.core.config import get_settings
+    from v3d_client import BadAnswer, Client, JobFailed, JobTimeout, Unreachable, V3DError
 
     token = os.environ.get(TOKEN_ENV)
     if not token:
         raise fail(f"{TOKEN_ENV} is not set: a remote command sends an API token (v3d users add prints one)")
+    settings = get_settings()
+    url = _server["url"]
     try:
-        with Client(_server["url"], token) as client:
+        # each wait at most half the request's time: a read begun just before its end ends within 1.5 times it
+        with Client(url, token, timeout=settings.remote_timeout_s / 2, total_timeout_s=settings.remote_timeout_s,
+                    max_answer_bytes=int(settings.remote_max_answer_mb * 2**20)) as client:
             yield client
     except JobFailed as exc:
         raise fail(str(exc.job.message), 2 if (exc.job.result or {}).get("invalid_input") else 1) from None
-    except (Unreachable, JobTimeout) as exc:
+    except (Unreachable, JobTimeout, BadAnswer) as exc:
         raise fail(str(exc), 1) from None
     except V3DError as exc:
         raise fail(str(exc)) from None
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        # an answer of the right shape as the client's models see it, yet not what the command reads in it (a job's
+        # free-form result): the server's fault, said in one line, never a traceback
+        raise fail(f"{url} answered what this command cannot read ({type(exc).__name__}: {str(exc)[:200]})",
+                   1) from None
 
 
 def wait_with_bars(client: "Client", job: "Job") -> "Job":

@@ -370,6 +370,27 @@ class Settings(BaseSettings):
         24.0, gt=0, description="How long the file an export job wrote is kept for download (hours, from when it was "
         "written): older export files under <jobs dir>/exports are removed when an export job starts or a file is "
         "asked for (then 404).")
+    backups_kept: int = Field(
+        7, ge=1, description="How many archives of backup jobs (POST /api/backups) the store keeps: the oldest are "
+        "removed once a new one is complete; a new one is refused (409) while the disk has less room than the last "
+        "one took (V3D_BACKUPS_KEPT).")
+    restore_max_line_mb: float = Field(
+        64.0, gt=0, description="Longest table row a restore reads from an archive (MB, 2^20 bytes: one line of a "
+        "tables/*.jsonl member, a release document the largest): a longer one refuses the restore (exit 2) at its "
+        "byte past the bound, so an archive's rows never hold more memory than this (V3D_RESTORE_MAX_LINE_MB).")
+    restore_spare_mb: float = Field(
+        256.0, ge=0, description="Free space a restore leaves on the disk of a folder store and of a SQLite database "
+        "(MB): an archive whose files and rows, at the sizes its manifest declares, do not fit with this much to "
+        "spare is refused before anything is written (V3D_RESTORE_SPARE_MB).")
+    remote_timeout_s: float = Field(
+        15.0, gt=0, le=3600, description="The longest one request of a remote command (v3d --server) may take, its "
+        "answer read whole (s; a read begun just before the end waits at most half of it more; an upload's body and "
+        "an export's download excepted, each of their reads bounded by half of it): a server answering a byte at a "
+        "time, or never ending its body, fails the command with one Error: line (V3D_REMOTE_TIMEOUT_S).")
+    remote_max_answer_mb: float = Field(
+        64.0, gt=0, description="The longest answer a remote command (v3d --server) reads into memory (MB, 2^20 "
+        "bytes): a longer one fails the command with one Error: line at its first byte past "
+        "(V3D_REMOTE_MAX_ANSWER_MB).")
     max_json_kb: float = Field(1024.0, gt=0, description="Largest request body that is not an upload (JSON), in KB "
                                                        "(2^10 bytes): 413 before it is parsed (V3D_MAX_JSON_KB).")
     max_upload_mb: float = Field(2048.0, gt=0, description="Largest upload accepted (MB, 2^20 bytes), counted while "

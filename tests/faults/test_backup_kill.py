@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 import signal
 import sqlite3
+import stat
 import subprocess
 import sys
 import time
@@ -79,12 +80,14 @@ def test_a_backup_killed_midway_leaves_nothing_that_looks_complete(source: Path,
     finally:
         proc.wait(30)
     assert not dest.exists()
+    assert stat.S_IMODE(part.stat().st_mode) == 0o600  # what a kill leaves holds secrets: its owner's alone
     checked = subprocess.run([V3D, "restore", "--verify-only", str(part)], env=_env(tmp_path / "t"),
                              capture_output=True, text=True, timeout=120)
     assert checked.returncode == 2 and "not a complete zip archive" in checked.stderr, checked.stderr
     done = subprocess.run([V3D, "backup", str(dest)], env=_env(source), capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert dest.exists() and not part.exists()
+    assert dest.exists() and not part.exists() and stat.S_IMODE(dest.stat().st_mode) == 0o600
+    assert f"{part} was left by a backup that did not finish" in done.stderr, done.stderr
 
 
 def test_a_restore_killed_midway_refuses_to_serve_and_the_same_command_finishes_it(source: Path,

@@ -9,8 +9,8 @@
   its creation and last-use times and an optional expiry; one can be revoked alone, and disabling a user
   revokes all of its tokens for good (enabling it again does not bring them back).
 * Every change of a user or a token is audited in its own transaction (``user.create``, ``user.role``,
-  ``user.disable``, ``user.enable``, ``token.issue``, ``token.revoke``: who, when, which user and token id,
-  never a secret); ``actor`` None is the machine's owner (``cli:<os user>``).
+  ``user.disable``, ``user.enable``, ``token.issue``, ``token.revoke``, ``user.take_over``: who, when, which user
+  and token id, never a secret); ``actor`` None is the machine's owner (``cli:<os user>``).
 * The key that signs session cookies is ``V3D_SESSION_SECRET`` when set, else the ``session`` row of
   ``server_secrets`` (made by migration 0005; made again here if missing), so that several uvicorn
   workers and restarts share it.
@@ -316,6 +316,54 @@ def set_disabled(session: Session, name: str, disabled: bool = True, *, actor: O
         audit.record(session, actor=actor, action="user.disable" if disabled else "user.enable",
                      after={"user": name, **({"tokens_revoked": revoked} if disabled else {})})
     return user
+
+
+@dataclass
+class TakenOver:
+    """What :func:`take_over` did: the API ``tokens_revoked``, the ``users_disabled``, the ``admin`` kept (``made``:
+    made now, the archive had no such account) and its new API ``token`` (the only one that works)."""
+
+    tokens_revoked: int
+    users_disabled: int
+    admin: str
+    made: bool
+    token: str
+
+
+def take_over(session: Session, admin: str, password: str) -> TakenOver:
+    """Make a restored database its restorer's (``v3d restore --new-secrets``, for an archive someone else made): the
+    session-signing key dropped (a new one is made at the next start: every cookie of the archive's key is void),
+    every API token revoked, every account disabled (until an admin enables it again: ``v3d users enable``) but
+    ``admin``, which is an enabled admin with ``password`` and one new API token (made now when the archive has no
+    such account). Every account's sessions end. Audited (``user.take_over``, by ``admin``). Commits.
+
+    Raises:
+        InvalidInputError: ``admin`` malformed or reserved (field ``name``), an empty password (field ``password``).
+    """
+    _check_password(password)
+    with _HASHING:
+        password_hash = PASSWORDS.hash(password)
+    existing = session.scalar(sa.select(User).where(User.name == admin))
+    if existing is None:
+        _check_name(admin, session)
+    keep = existing.id if existing is not None else -1
+    with write_unit(session, lock=False):
+        session.execute(sa.delete(ServerSecret))
+        revoked = cast(CursorResult, session.execute(
+            sa.update(ApiToken).where(ApiToken.revoked_at.is_(None)).values(revoked_at=utcnow()))).rowcount or 0
+        disabled = cast(CursorResult, session.execute(
+            sa.update(User).where(User.id != keep, User.disabled.is_(False)).values(disabled=True))).rowcount or 0
+        session.execute(sa.update(User).values(session_generation=User.session_generation + 1))
+        session.execute(sa.update(User).where(User.id == keep).values(
+            role=UserRole.ADMIN, disabled=False, password_hash=password_hash))
+        audit.record(session, actor=admin, action="user.take_over",
+                     after={"user": admin, "tokens_revoked": revoked, "users_disabled": disabled})
+    session.expire_all()
+    if existing is None:
+        token = create_user(session, admin, "admin", password)[1]
+    else:
+        token = issue_token(session, admin, label="restore --new-secrets").token
+    return TakenOver(tokens_revoked=revoked, users_disabled=disabled, admin=admin, made=existing is None, token=token)
 
 
 def authenticate_password(session: Session, name: str, password: str) -> Optional[User]:

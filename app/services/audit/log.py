@@ -41,7 +41,8 @@ AUDIT_ENTRY_HEADER = "X-V3D-Audit-Entry"
 SUMMARY_ACTIONS = ("import", "recompute")
 #: An administrator's changes of users and tokens (``app.services.accounts.users``): listed to admins only,
 #: never reverted (``after`` names the user and the token id, never a secret).
-ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke")
+ADMIN_ACTIONS = ("user.create", "user.role", "user.disable", "user.enable", "token.issue", "token.revoke",
+                 "user.take_over")
 #: Releases made (``app.services.releases.content``): immutable, never reverted.
 RELEASE_ACTIONS = ("release.create",)
 #: The team's loop (``app.services.curation.handoff`` and ``comments``): a needs-fix system returned to a person or

@@ -325,6 +325,10 @@ def account_words(action: str, before: Mapping[str, Any], after: Mapping[str, An
         return f"{token} issued to {user}, " + (f"expires {str(until)[:10]}" if until else "valid until revoked")
     if action == "token.revoke":
         return f"{token} of {user} revoked"
+    if action == "user.take_over":
+        return (f"restored with new secrets: {user} the admin, a new session key, "
+                f"{_count(after.get('tokens_revoked', 0), 'API tokens')} revoked, "
+                f"{_count(after.get('users_disabled', 0), 'accounts')} disabled")
     return f"{action.replace('.', ' ')} {user}"
 
 

@@ -121,7 +121,8 @@ class ArchiveWriter:
     def __init__(self, target: Path, manifest: Manifest) -> None:
         self.manifest = manifest
         self._target = target
-        self._zip = zipfile.ZipFile(target, "w", allowZip64=True)
+        self._file = open_secret(target)
+        self._zip = zipfile.ZipFile(self._file, "w", allowZip64=True)
 
     def member(self, name: str, compress: bool) -> "_HashedMember":
         """A member ``name`` open for writing (a context manager; its digest is recorded when it closes)."""
@@ -148,10 +149,35 @@ class ArchiveWriter:
             self.manifest.members[name]["stored_sha256"] = digest
         self._zip.writestr(zipfile.ZipInfo(MANIFEST, date_time=(1980, 1, 1, 0, 0, 0)), self.manifest.to_json())
         self._zip.close()
+        self._file.close()
 
     def abort(self) -> None:
         """Close the zip without a manifest (the caller removes the file)."""
-        self._zip.close()
+        try:
+            self._zip.close()
+        finally:
+            self._file.close()
+
+
+#: The mode of every archive v3d writes, and of its ``.part`` from its first byte: it holds every password and token
+#: hash and the session key, so only its owner reads it, whatever the umask.
+SECRET_MODE = 0o600
+
+
+def open_secret(path: Path) -> BinaryIO:
+    """``path`` created (or emptied) for writing and reading with mode :data:`SECRET_MODE` from the start, never
+    through a symbolic link (``O_NOFOLLOW``: a link planted at the name is refused, its target left alone).
+
+    Raises:
+        OSError: the file cannot be made (a link at ``path`` included: ``ELOOP``).
+    """
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), SECRET_MODE)
+    try:
+        os.fchmod(fd, SECRET_MODE)  # a file left by an older run keeps its mode through O_CREAT: set it again
+        return os.fdopen(fd, "w+b")
+    except BaseException:
+        os.close(fd)
+        raise
 
 
 class _HashedMember:
@@ -227,13 +253,16 @@ def open_archive(path: Path) -> zipfile.ZipFile:
                             f"file") from None
 
 
-def verify_archive(path: Path, progress: Any = None) -> Manifest:
+def verify_archive(path: Path, progress: Any = None, max_line: Optional[int] = None) -> Manifest:
     """Check every member of the archive at ``path`` against its manifest (module docstring); its manifest.
 
     ``progress(stage, done, total)`` (``app.core.progress.Progress``), when given, is told the bytes hashed.
+    ``max_line``: the longest line a table member may hold (bytes; :class:`LineTooLong` past it), checked in the same
+    read, so a restore refuses such a table before it writes anything.
 
     Raises:
-        BrokenArchive: the first member that fails, named (missing, unlisted, unreadable, or another digest).
+        BrokenArchive: the first member that fails, named (missing, unlisted, unreadable, another digest or size, a
+            line past ``max_line``).
         FileNotFoundError: no such file.
     """
     with open_archive(path) as archive:
@@ -242,21 +271,41 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
         unlisted = sorted(names - set(manifest.members) - {MANIFEST})
         if unlisted:
             raise BrokenArchive(f"{unlisted[0]}: in the archive but not in its manifest", unlisted[0])
-        total = sum(int(m.get("size", 0)) for m in manifest.members.values())
+        sizes = {name: declared_size(name, expected) for name, expected in manifest.members.items()}
+        tables = {t.member for t in manifest.tables}
+        total = sum(sizes.values())
         done = 0
         for name, expected in manifest.members.items():
             if name not in names:
                 raise BrokenArchive(f"{name}: listed in the manifest but missing from the archive", name)
+            size = sizes[name]
+            if archive.getinfo(name).file_size != size:
+                raise BrokenArchive(f"{name}: the zip says it holds {archive.getinfo(name).file_size:,} bytes, the "
+                                    f"manifest {size:,}: the member is broken or was changed", name)
             digest = hashlib.sha256()
+            read = 0
+            lines_of = _LineBound(name, max_line) if max_line is not None and name in tables else None
             try:
                 with archive.open(name) as stream:
-                    for chunk in iter(lambda: stream.read(CHUNK_BYTES), b""):
+                    # never more than one byte past what the manifest declares: a member that inflates beyond it
+                    # (a zip bomb whose header lies too) is refused at that byte, not read to its end
+                    while chunk := stream.read(min(CHUNK_BYTES, size - read + 1)):
+                        read += len(chunk)
+                        if read > size:
+                            raise BrokenArchive(f"{name}: holds more than the {size:,} bytes its manifest declares "
+                                                f"(refused at the first byte past them)", name)
                         digest.update(chunk)
+                        if lines_of is not None:
+                            lines_of.feed(chunk)
                         done += len(chunk)
                         if progress is not None:
                             progress("verify", done, total)
             except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as exc:  # a CRC, a cut file
+                if isinstance(exc, BrokenArchive):
+                    raise
                 raise BrokenArchive(f"{name}: unreadable ({type(exc).__name__}: {exc})", name) from None
+            if read != size:
+                raise BrokenArchive(f"{name}: holds {read:,} bytes, its manifest declares {size:,}", name)
             if digest.hexdigest() != expected.get("sha256"):
                 raise BrokenArchive(f"{name}: its SHA-256 is {digest.hexdigest()}, the manifest says "
                                     f"{expected.get('sha256')}: the member is broken or was changed", name)
@@ -269,6 +318,18 @@ def verify_archive(path: Path, progress: Any = None) -> Manifest:
     return manifest
 
 
+def declared_size(name: str, entry: dict[str, Any]) -> int:
+    """The size in bytes the manifest declares for member ``name`` (its ``entry`` in ``members``).
+
+    Raises:
+        BrokenArchive: none, or not a whole number of bytes (a hand-made manifest).
+    """
+    size = entry.get("size") if isinstance(entry, dict) else None
+    if not isinstance(size, int) or isinstance(size, bool) or size < 0:
+        raise BrokenArchive(f"{MANIFEST}: member {name!r} declares no size in bytes", MANIFEST)
+    return size
+
+
 def _check_manifest_names(manifest: Manifest) -> None:
     """Refuse a manifest whose members named for tables and objects are not its own members (a hand-made archive)."""
     named = [t.member for t in manifest.tables] + list(manifest.objects.values())
@@ -277,10 +338,46 @@ def _check_manifest_names(manifest: Manifest) -> None:
             raise BrokenArchive(f"{member}: named by the manifest's tables or objects but not a member", member)
 
 
-def lines(archive: zipfile.ZipFile, member: str) -> Iterator[bytes]:
-    """The lines of the member ``member`` (a table's rows), read as a stream."""
+class LineTooLong(BrokenArchive):
+    """A table member's line (one row) longer than a restore reads (``V3D_RESTORE_MAX_LINE_MB``)."""
+
+
+class _LineBound:
+    """Follows a member's lines through the chunks it is read in, holding no line: refuses one longer than
+    ``max_bytes`` (:class:`LineTooLong`, its number named) as soon as its bytes are seen."""
+
+    def __init__(self, member: str, max_bytes: int) -> None:
+        self.member, self.max_bytes = member, max_bytes
+        self.run = 0  # bytes of the line being read, so far
+        self.number = 1
+
+    def feed(self, chunk: bytes) -> None:
+        parts = chunk.split(b"\n")
+        for i, part in enumerate(parts):
+            self.run += len(part)
+            if self.run > self.max_bytes:
+                raise LineTooLong(f"{self.member}: line {self.number} is longer than {self.max_bytes:,} bytes, the "
+                                  f"longest row a restore reads (V3D_RESTORE_MAX_LINE_MB)", self.member)
+            if i < len(parts) - 1:  # a newline ends it
+                self.run = 0
+                self.number += 1
+
+
+def lines(archive: zipfile.ZipFile, member: str, max_bytes: int) -> Iterator[bytes]:
+    """The lines of the member ``member`` (a table's rows), read as a stream, none held past ``max_bytes``.
+
+    Raises:
+        LineTooLong: a line longer than ``max_bytes`` (named with its number), at its ``max_bytes + 1``-th byte.
+    """
     with archive.open(member) as stream:
-        yield from (line for line in stream if line.strip())
+        number = 0
+        while line := stream.readline(max_bytes + 1):
+            number += 1
+            if len(line.rstrip(b"\n")) > max_bytes:
+                raise LineTooLong(f"{member}: line {number} is longer than {max_bytes:,} bytes, the longest row a "
+                                  f"restore reads (V3D_RESTORE_MAX_LINE_MB)", member)
+            if line.strip():
+                yield line
 
 
 def replace_into(part: Path, target: Path) -> None:

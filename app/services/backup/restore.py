@@ -3,9 +3,12 @@ from any engine to any engine (SQLite + a folder, PostgreSQL + S3).
 
 The order, so that nothing is written unless the whole can be, and a restore cut short is never served:
 
-1. the archive is verified whole (every member's SHA-256 against its manifest) before anything else;
-2. its schema revision must be one this v3d knows, and every key it will write must fit the target store (S3 names
-   hold 1,024 bytes): refused, named, before any write;
+1. the archive is verified whole (every member's SHA-256 and size against its manifest, read in bounded chunks and
+   refused at the first byte past the size declared) before anything else;
+2. its schema revision must be one this v3d knows, every key it will write must fit the target store (S3 names
+   hold 1,024 bytes), every frame must name its images in the archive, a store, the data root or one of the archive's
+   own dataset folders, and its expanded size must fit the target's free disk space: refused, named, before any
+   write; a table's row is never read past ``V3D_RESTORE_MAX_LINE_MB``;
 3. the target database must hold no data (an empty or only-migrated database counts as empty), unless ``replace``;
 4. the target is marked (``app.db.session.RESTORING_TABLE``): from here until the mark is dropped at the very end,
    ``v3d serve`` and every command refuse the database with words, and running the restore again finishes it (it
@@ -13,19 +16,23 @@ The order, so that nothing is written unless the whole can be, and a restore cut
 5. the tables are dropped and made again by the migrations at the archive's revision, the rows inserted as they were
    (ids included; no import cap applies: they are rows, not a dataset), the store's objects written under their keys,
    a local dataset folder's files under ``restored/<backup id>/<n>/`` with its frames naming them there, the schema
-   migrated to head, PostgreSQL's sequences moved past the ids restored; then the mark is dropped.
+   migrated to head, PostgreSQL's sequences moved past the ids restored; then the mark is dropped. Jobs the archive
+   held queued or running are kept failed, never run here (:data:`NOT_RUN_HERE`).
 
-Passwords, API tokens and the session-signing key are rows: they keep working. Times, ids, versions (ETags), release
-documents and hashes are restored as stored, so every answer and every release export is the same.
+Passwords, API tokens and the session-signing key are rows: they keep working, and whoever made the archive is an
+admin of the target. ``--new-secrets`` (an archive someone else made) restores the data with a new session key, every
+API token revoked and every account but the restoring admin's disabled (``users.take_over``). Times, ids, versions
+(ETags), release documents and hashes are restored as stored, so every answer and every release export is the same.
 """
 from __future__ import annotations
 
 import secrets
+import shutil
 import time
 import warnings
 import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any, Optional
 
 import orjson
@@ -35,6 +42,8 @@ from sqlalchemy.engine import Engine
 from app.core.config import Settings, jobs_dir
 from app.core.errors import ConflictError, InvalidInputError
 from app.core.progress import Progress
+from app.datasets.files import is_safe_member
+from app.db.in_use import exclusive
 from app.db.session import (
     RESTORING_TABLE,
     V3dSession,
@@ -44,7 +53,8 @@ from app.db.session import (
     unfinished_restore,
     upgrade_database,
 )
-from app.services.backup.archive import BrokenArchive, Manifest, lines, s3_location, verify_archive
+from app.services.accounts.users import TakenOver, take_over
+from app.services.backup.archive import MANIFEST, BrokenArchive, Manifest, lines, s3_location, verify_archive
 from app.services.backup.rows import decoder, write_type
 from app.services.backup.snapshot import BACKUPS, SKIPPED_TABLES
 from app.services.storage import storage_for
@@ -67,13 +77,16 @@ class TargetNotEmpty(ConflictError):
 @dataclass
 class RestoreReport:
     """What a restore did: the archive's ``manifest``, the ``rows`` and ``objects`` written, the local dataset folders
-    whose files were not in the archive and are not on this machine (``missing_roots``), ``seconds``."""
+    whose files were not in the archive and are not on this machine (``missing_roots``), ``seconds``, and the jobs the
+    archive held queued or running, kept failed (``jobs_not_run``)."""
 
     manifest: Manifest
     rows: int = 0
     objects: int = 0
     missing_roots: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    jobs_not_run: int = 0
+    taken_over: Optional[TakenOver] = None
 
 
 def fetch_archive(archive: str, settings: Settings) -> tuple[Path, bool]:
@@ -106,7 +119,7 @@ def verify(archive: str, settings: Settings, progress: Optional[Progress] = None
     """
     path, temporary = fetch_archive(archive, settings)
     try:
-        manifest = verify_archive(path, progress)
+        manifest = verify_archive(path, progress, max_line_bytes(settings))
     finally:
         if temporary:
             path.unlink(missing_ok=True)
@@ -115,12 +128,16 @@ def verify(archive: str, settings: Settings, progress: Optional[Progress] = None
 
 
 def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
-                   progress: Optional[Progress] = None) -> RestoreReport:
-    """Restore ``archive`` into ``settings``' database and store (module docstring).
+                   progress: Optional[Progress] = None, new_secrets: Optional[tuple[str, str]] = None) -> RestoreReport:
+    """Restore ``archive`` into ``settings``' database and store (module docstring). ``new_secrets`` (an admin's name
+    and password): an archive someone else made, whose accounts, tokens and session key must not work here
+    (``app.services.accounts.users.take_over``, before the database is served; its report in ``taken_over``).
 
     Raises:
-        BrokenArchive: the archive is not whole (nothing written).
-        InvalidInputError: a key the target store cannot hold (field ``key``; nothing written).
+        BrokenArchive: the archive is not whole, a member is not the size its manifest declares, a row is longer
+            than ``V3D_RESTORE_MAX_LINE_MB``, or a frame names a file outside the archive (nothing written).
+        InvalidInputError: a key the target store cannot hold (field ``key``), or the archive expands to more than
+            the target's disks have free (field ``archive``; nothing written).
         TargetNotEmpty: the database holds data and ``replace`` is off, or it is another archive's unfinished
             restore (nothing written).
         FileNotFoundError: no such archive.
@@ -128,33 +145,50 @@ def restore_backup(archive: str, settings: Settings, *, replace: bool = False,
     started = time.monotonic()
     path, temporary = fetch_archive(archive, settings)
     try:
-        manifest = verify_archive(path, progress)
+        max_line = max_line_bytes(settings)
+        manifest = verify_archive(path, progress, max_line)
         _known_revision(manifest)
         storage = storage_for(settings)
         writes = _store_writes(manifest)
         _check_keys(storage, writes)
-        engine = make_engine(settings.database_url)
-        try:
-            label = archive if archive.startswith("s3://") else str(Path(archive).expanduser().resolve())
-            _check_target(engine, label, replace)
-            _mark(engine, label)
-            report = RestoreReport(manifest=manifest)
-            with zipfile.ZipFile(path) as zf:
-                _rebuild_schema(engine, settings.database_url, manifest.schema_revision)
-                report.rows = _insert_rows(engine, zf, manifest, progress)
-                report.objects = _write_store(zf, storage, writes, progress)
-                report.missing_roots = _name_local_roots(engine, manifest, settings)
-            upgrade_database(settings.database_url, "head", restoring=True)
-            _advance_sequences(engine)
-            with V3dSession(engine) as session:
-                refresh_statistics(session)
-            _unmark(engine)
-        finally:
-            engine.dispose()
+        with zipfile.ZipFile(path) as zf:
+            _check_frame_files(zf, manifest, max_line)
+        _check_room(manifest, writes, settings, storage)
+        with exclusive(settings.database_url):  # no server or job runner uses it, and none starts meanwhile
+            report = _restore_into(archive, path, manifest, settings, storage, writes, replace, max_line, progress,
+                                   new_secrets)
     finally:
         if temporary:
             path.unlink(missing_ok=True)
     report.seconds = round(time.monotonic() - started, 3)
+    return report
+
+
+def _restore_into(archive: str, path: Path, manifest: Manifest, settings: Settings, storage: Storage,
+                  writes: list[tuple[str, str]], replace: bool, max_line: int,
+                  progress: Optional[Progress], new_secrets: Optional[tuple[str, str]]) -> RestoreReport:
+    """Steps 3 to 5 of the module docstring, the archive verified and checked."""
+    engine = make_engine(settings.database_url)
+    try:
+        label = archive if archive.startswith("s3://") else str(Path(archive).expanduser().resolve())
+        _check_target(engine, label, replace)
+        _mark(engine, label)
+        report = RestoreReport(manifest=manifest)
+        with zipfile.ZipFile(path) as zf:
+            _rebuild_schema(engine, settings.database_url, manifest.schema_revision)
+            report.rows = _insert_rows(engine, zf, manifest, progress, max_line)
+            report.jobs_not_run = _fail_unfinished_jobs(engine)
+            report.objects = _write_store(zf, storage, writes, progress)
+            report.missing_roots = _name_local_roots(engine, manifest, settings)
+        upgrade_database(settings.database_url, "head", restoring=True)
+        _advance_sequences(engine)
+        with V3dSession(engine) as session:
+            refresh_statistics(session)
+            if new_secrets is not None:  # while the database is still marked: never served with the archive's keys
+                report.taken_over = take_over(session, *new_secrets)
+        _unmark(engine)
+    finally:
+        engine.dispose()
     return report
 
 
@@ -191,6 +225,89 @@ def _store_writes(manifest: Manifest) -> list[tuple[str, str]]:
     except ValueError as exc:
         raise BrokenArchive(f"manifest.json: {exc}", "manifest.json") from None
     return out
+
+
+def max_line_bytes(settings: Settings) -> int:
+    """The longest table row (one line of a ``tables/*.jsonl`` member) a restore reads, in bytes
+    (``V3D_RESTORE_MAX_LINE_MB``): what bounds its memory whatever the archive holds."""
+    return int(settings.restore_max_line_mb * 2**20)
+
+
+def _check_frame_files(zf: zipfile.ZipFile, manifest: Manifest, max_line: int) -> None:
+    """Refuse, before anything is written, frames that name a file outside the archive: an ``image_root`` that is
+    neither a store key, a folder under the target's data root, nor one of the manifest's ``local_roots`` (the dataset
+    folders an ordinary backup lists, their files carried or named as missing); an image path, zip or member that is
+    absolute or leads out with ``..``. A restored frame is served to every role, so a row naming ``/home/...`` would
+    show the target's own files.
+
+    Raises:
+        BrokenArchive: the first such frame, named (member ``tables/frames.jsonl``).
+    """
+    entry = next((t for t in manifest.tables if t.name == "frames"), None)
+    if entry is None:
+        return
+    names = [c for c, _ in entry.columns]
+    at = {n: names.index(n) for n in ("id", "image_root", "image_path", "image_zip", "image_member") if n in names}
+    roots = {r.root for r in manifest.local_roots}
+    for root in roots:
+        if not (root.startswith((STORED, IN_DATA_ROOT)) or PurePosixPath(root).is_absolute()):
+            raise BrokenArchive(f"{MANIFEST}: local dataset folder {root[:200]!r} is neither absolute nor under a "
+                                f"data root: an archive made by hand; nothing was restored", MANIFEST)
+    for line in lines(zf, entry.member, max_line):
+        try:
+            values = orjson.loads(line)
+            row = {n: values[i] for n, i in at.items()}
+        except (orjson.JSONDecodeError, IndexError, TypeError):
+            raise BrokenArchive(f"{entry.member}: a row that is not a list of {len(names)} values", entry.member) \
+                from None
+        where = f"{entry.member}: frame {row.get('id')}"
+        folder = row.get("image_root")
+        if folder is not None and not (isinstance(folder, str) and (folder.startswith((STORED, IN_DATA_ROOT))
+                                                                      or folder in roots)):
+            raise BrokenArchive(f"{where} names the image folder {str(folder)[:200]!r}, which is neither in a store, "
+                                f"under a data root, nor one of the archive's own dataset folders (its manifest's "
+                                f"local_roots): it would show a file of this machine; nothing was restored",
+                                entry.member)
+        for column in ("image_path", "image_zip", "image_member"):
+            name = row.get(column)
+            if name is not None and not (isinstance(name, str) and is_safe_member(name)):
+                raise BrokenArchive(f"{where}: its {column} {str(name)[:200]!r} is absolute or leads out of its "
+                                    f"dataset's folder: nothing was restored", entry.member)
+
+
+def _check_room(manifest: Manifest, writes: list[tuple[str, str]], settings: Settings, storage: Storage) -> None:
+    """Refuse, before anything is written, an archive that expands to more than the target's disks hold: its
+    files (their sizes as the manifest declares them, each checked by :func:`archive.verify_archive`) against the free
+    space of a folder store's disk, its rows against a SQLite database's, each leaving ``V3D_RESTORE_SPARE_MB`` free.
+    A remote store or database server is not measured from here.
+
+    Raises:
+        InvalidInputError: a disk with too little room, named with the sizes (field ``archive``).
+    """
+    needs: dict[int, list[Any]] = {}  # device -> [a folder on it, bytes needed]
+
+    def need(folder: Optional[Path], size: int) -> None:
+        if folder is None or size <= 0:
+            return
+        existing = folder.resolve()
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        entry = needs.setdefault(existing.stat().st_dev, [existing, 0])
+        entry[1] += size
+
+    sizes = {name: int(m["size"]) for name, m in manifest.members.items()}
+    need(storage.local_path(RESTORED), sum(sizes[member] for member, _key in writes))
+    url = sa.engine.make_url(settings.database_url)
+    if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+        need(Path(str(url.database)).parent, sum(sizes[t.member] for t in manifest.tables))
+    spare = int(settings.restore_spare_mb * 2**20)
+    for folder, size in needs.values():
+        free = shutil.disk_usage(folder).free
+        if size + spare > free:
+            raise InvalidInputError(
+                f"the archive expands to {size / 2**20:,.1f} MB on the disk of {folder}, which has "
+                f"{free / 2**20:,.1f} MB free and keeps {spare / 2**20:,.0f} MB spare (V3D_RESTORE_SPARE_MB): nothing "
+                f"was restored; free some space or restore onto another disk", field="archive")
 
 
 def _check_keys(storage: Storage, writes: list[tuple[str, str]]) -> None:
@@ -242,10 +359,19 @@ def _rebuild_schema(engine: Engine, url: str, revision: str) -> None:
         warnings.simplefilter("ignore", sa.exc.SAWarning)  # an index on an expression: dropped with its table
         meta.reflect(conn)
         meta.drop_all(conn, tables=[t for t in meta.sorted_tables if t.name != RESTORING_TABLE])
+        if engine.dialect.name == "postgresql":
+            # the migrations' own functions (the audit's append-only triggers) outlive their tables: dropped too, or
+            # migrating again fails on them; an extension's functions are left alone
+            for (signature,) in conn.execute(sa.text(
+                    "SELECT p.oid::regprocedure::text FROM pg_proc p JOIN pg_namespace n ON n.oid = p.pronamespace "
+                    "WHERE n.nspname = current_schema() AND NOT EXISTS (SELECT 1 FROM pg_depend d WHERE "
+                    "d.objid = p.oid AND d.deptype = 'e')")).all():
+                conn.execute(sa.text(f"DROP FUNCTION IF EXISTS {signature} CASCADE"))
     upgrade_database(url, revision, restoring=True)
 
 
-def _insert_rows(engine: Engine, zf: zipfile.ZipFile, manifest: Manifest, progress: Optional[Progress]) -> int:
+def _insert_rows(engine: Engine, zf: zipfile.ZipFile, manifest: Manifest, progress: Optional[Progress],
+                 max_line: int) -> int:
     """Every table's rows, parents first (the archive's order), in batches; the rows inserted."""
     dialect = engine.dialect.name
     total = sum(t.rows for t in manifest.tables)
@@ -266,7 +392,7 @@ def _insert_rows(engine: Engine, zf: zipfile.ZipFile, manifest: Manifest, progre
         with engine.begin() as conn:
             conn.execute(sa.delete(table))  # what the migrations made (the session key): the archive's replaces it
             batch: list[dict[str, Any]] = []
-            for line in lines(zf, entry.member):
+            for line in lines(zf, entry.member, max_line):
                 values = orjson.loads(line)
                 batch.append({n: d(v) for n, d, v in zip(names, decoders, values, strict=True)})
                 if len(batch) >= BATCH_ROWS:
@@ -281,6 +407,21 @@ def _insert_rows(engine: Engine, zf: zipfile.ZipFile, manifest: Manifest, progre
             if progress is not None:
                 progress("rows", done, total)
     return done
+
+
+#: What a job the archive held queued or running says once restored: it is never run on the target.
+NOT_RUN_HERE = "restored from an archive: not run here"
+
+
+def _fail_unfinished_jobs(engine: Engine) -> int:
+    """The archive's queued and running jobs kept as failed (:data:`NOT_RUN_HERE`), never claimed by the target's
+    runners: a job row names paths and actions of the machine that made it (an import's folder, an upload to clean
+    up), and an archive from elsewhere must not make the target read or remove its own files. The jobs changed."""
+    with engine.begin() as conn:
+        result = conn.execute(sa.text("UPDATE jobs SET state = 'failed', message = :m, owner = NULL, "
+                                      "finished_at = CURRENT_TIMESTAMP WHERE state IN ('queued', 'running')"),
+                              {"m": NOT_RUN_HERE})
+        return int(result.rowcount or 0)
 
 
 def _write_store(zf: zipfile.ZipFile, storage: Storage, writes: list[tuple[str, str]],

@@ -9,15 +9,19 @@ written once under its key and never changed in place, so the copy is the snapsh
 
 The archive is written beside its destination under a temporary name (``.NAME.part``) and renamed only when complete
 (an ``s3://`` destination is uploaded only when complete: S3 shows an object once its upload ends), so a backup killed
-or failing midway leaves nothing that looks like a backup.
+or failing midway leaves nothing that looks like a backup. The archive holds every password and token hash and the
+session key: it and its ``.part`` are mode 0600 from their first byte whatever the umask
+(``archive.open_secret``), a destination that is a symbolic link is refused, and a ``.part`` a killed backup left is
+named by the next backup beside it.
 """
 from __future__ import annotations
 
 import contextlib
+import os
 import secrets
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Iterator, Optional
@@ -42,12 +46,15 @@ BATCH_ROWS = 5000
 SKIPPED_TABLES = frozenset({"alembic_version", RESTORING_TABLE})
 #: The store's folder of backups the API's job writes (never backed up themselves).
 BACKUPS = "backups"
+#: The suffix of an archive being written (``.NAME.part`` beside it), renamed to its name when complete.
+PART = ".part"
 
 
 @dataclass
 class BackupReport:
     """What a backup wrote: ``destination``, its ``size`` (bytes), ``tables``, ``rows`` and ``objects`` (store
-    objects and local files) written, ``missing`` (objects the snapshot names that were not found), ``seconds``."""
+    objects and local files) written, ``missing`` (objects the snapshot names that were not found), ``seconds``, and
+    ``stale_parts``: the unfinished ``.part`` files found beside the destination when it began (:func:`stale_parts`)."""
 
     destination: str
     size: int
@@ -57,6 +64,7 @@ class BackupReport:
     missing: list[str]
     seconds: float
     schema_revision: str
+    stale_parts: list[str] = field(default_factory=list)
 
     def as_result(self) -> dict[str, Any]:
         """The report as a job's result (JSON)."""
@@ -87,8 +95,9 @@ def write_backup(engine: Engine, settings: Settings, destination: str, progress:
     """
     started = time.monotonic()
     target, upload = _destination(destination, settings)
-    part = target.with_name(f".{target.name}.part")
+    part = target.with_name(f".{target.name}{PART}")
     part.parent.mkdir(parents=True, exist_ok=True)
+    stale = stale_parts(part.parent)
     storage = storage_for(settings)
     files = DatasetFiles(storage, settings.data_root, jobs_dir(settings))
     manifest = Manifest(v3d_version=v3d_version(), schema_revision="", engine=engine.dialect.name,
@@ -121,7 +130,17 @@ def write_backup(engine: Engine, settings: Settings, destination: str, progress:
     return BackupReport(destination=destination, size=size, tables=len(manifest.tables), rows=rows,
                         objects=len(manifest.objects) + sum(r.files for r in manifest.local_roots),
                         missing=missing, seconds=round(time.monotonic() - started, 3),
-                        schema_revision=manifest.schema_revision)
+                        schema_revision=manifest.schema_revision, stale_parts=stale)
+
+
+def stale_parts(folder: Path) -> list[str]:
+    """The ``.NAME.part`` files in ``folder`` before a backup starts writing its own: each one a backup that did not
+    finish (killed, or still running) left, holding a copy of the secrets it had written so far. They are named, not
+    removed (one may be another backup's, running now); the backup's own name, if among them, is written over."""
+    try:
+        return sorted(str(p) for p in folder.glob(f".*{PART}") if p.is_file())
+    except OSError:
+        return []
 
 
 def _destination(destination: str, settings: Settings) -> tuple[Path, Optional[tuple[Storage, str]]]:
@@ -134,7 +153,12 @@ def _destination(destination: str, settings: Settings) -> tuple[Path, Optional[t
         bucket, key = s3
         scratch = jobs_dir(settings) / BACKUPS / f"upload-{secrets.token_hex(4)}.zip"
         return scratch, (S3Storage(bucket, ""), key)
-    target = Path(destination).expanduser().resolve()
+    named = Path(destination).expanduser()
+    if named.is_symlink():
+        raise ValueError(f"{destination!r} is a symbolic link (to {os.readlink(named)!r}): a backup never writes "
+                         f"through a link, which could overwrite another file with the secrets; name the archive's "
+                         f"own file")
+    target = named.resolve()
     if target.is_dir():
         raise ValueError(f"{destination!r} is a folder: name the archive's file (e.g. {target / 'v3d-backup.zip'})")
     return target, None

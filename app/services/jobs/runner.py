@@ -50,7 +50,7 @@ from app.db.session import is_lock_timeout
 from app.db.types import json_safe, utcnow
 from app.db.unit import write_unit
 from app.services.jobs.progress import LIVE_EVERY_S, remove_live, write_live
-from app.services.jobs.work import WORK
+from app.services.jobs.work import COMMAND_LINE, WORK
 
 log = logging.getLogger(__name__)
 
@@ -327,10 +327,12 @@ def failure_message(exc: BaseException) -> str:
 
 
 def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Settings, owner: str,
-            progress: Progress | None = None) -> Job:
+            progress: Progress | None = None, *, command_line: bool = False) -> Job:
     """Run the job ``job_id`` that ``owner`` claimed, to its end: ``done`` with its ``result``, or
     ``failed`` with the error's message (``result["error"]`` its class name). ``progress`` (stage,
-    done, total) is called as the work advances, in this thread (the CLI's bars).
+    done, total) is called as the work advances, in this thread (the CLI's bars). ``command_line``: the job is the
+    one this process's operator typed (``v3d import``), so an import may read a folder outside the data root
+    (``app.services.jobs.work.COMMAND_LINE``); every other job row is data and reads only under it.
 
     Returns:
         The job as stored at the end (as last read when it was taken over: :class:`JobLost`).
@@ -362,6 +364,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
     heartbeat.beat()
     heartbeat.start()
     values: dict[str, Any]
+    typed = COMMAND_LINE.set(command_line)
     try:
         result = _work_with_retries(session_factory, WORK[kind], params, settings, report, job_id, gate)
         values = {"state": JobState.DONE, "result": json_safe(result), "message": None}
@@ -372,6 +375,7 @@ def run_job(session_factory: sessionmaker[Session], job_id: int, settings: Setti
         values = {"state": JobState.FAILED, "message": failure_message(exc),
                   "result": {"error": type(exc).__name__, "invalid_input": isinstance(exc, InvalidInputError)}}
     finally:
+        COMMAND_LINE.reset(typed)
         heartbeat.stopped.set()
         heartbeat.join()
         remove_live(folder, job_id)

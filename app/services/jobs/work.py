@@ -12,7 +12,9 @@ when complete, removed ``Settings.export_keep_hours`` later).
 from __future__ import annotations
 
 import contextlib
+import re
 import shutil
+from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -20,7 +22,7 @@ from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session
 
 from app.core.config import Settings, jobs_dir
-from app.core.errors import InvalidInputError
+from app.core.errors import ForbiddenError, InvalidInputError
 from app.core.names import clean_title
 from app.core.progress import Progress
 from app.db.models import Job
@@ -31,10 +33,16 @@ from app.services.exports.files import EXPORTS, prune_exports, prune_stored_expo
 from app.services.exports.formats import NOTHING, RELEASE_EXPORTS, export_format
 from app.services.jobs.summary import summary
 from app.services.storage import storage_for
-from app.services.storage.datasets import DatasetFiles, rekey_frames
-from app.services.storage.stores import checked_key
+from app.services.storage.datasets import UPLOADS, DatasetFiles, rekey_frames
+from app.services.storage.stores import Storage, StoredObject, checked_key
 from app.services.transfer import data_root
 from app.services.transfer.import_formats import import_format, stored_games_refusal
+
+#: True while this process runs an import its operator named on this machine's command line (``v3d import``:
+#: ``runner.run_job(..., command_line=True)``), the one import that may read a folder outside the data root (the
+#: command is not confined). A job row anyone else queued (the API, an archive restored, a runner taking over a
+#: stale job) reads only under the data root or from its own upload: the row's path is data, not the operator's word.
+COMMAND_LINE = ContextVar("v3d_command_line_import", default=False)
 
 
 def import_params(kind: str, path: str | Path, *, width: int | None = None, height: int | None = None,
@@ -104,14 +112,76 @@ def run_import(session: Session, params: dict[str, Any], settings: Settings, pro
         FileNotFoundError: the upload is no longer in the store.
     """
     files = DatasetFiles.from_settings(settings)
+    params = confined_import(params, settings, files)
     key = params.get("upload_key")
-    if key:
-        params = {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
     try:
         return _import_and_rekey(session, params, settings, progress, job_id, files)
     finally:
         if key and files.storage.local_path(str(key)) is None:  # this node's copy of an upload kept elsewhere
-            shutil.rmtree(params["path"], ignore_errors=True)
+            remove_upload(params["path"], files)
+
+
+def upload_folders(files: DatasetFiles) -> list[Path]:
+    """The folders (resolved) an upload is unpacked into or read from: this node's ``<jobs dir>/uploads`` and a
+    folder store's own ``uploads``."""
+    out = [(files.scratch / UPLOADS).resolve()]
+    own = files.storage.local_path(UPLOADS)
+    if own is not None:
+        out.append(own.resolve())
+    return out
+
+
+def is_upload_folder(path: str | Path, files: DatasetFiles) -> bool:
+    """True when ``path`` is itself (no link) one upload's folder: a direct child of :func:`upload_folders`."""
+    candidate = Path(path)
+    if candidate.is_symlink():
+        return False
+    resolved = candidate.resolve()
+    return any(resolved.parent == root for root in upload_folders(files))
+
+
+def remove_upload(path: str | Path, files: DatasetFiles) -> bool:
+    """Remove the upload folder ``path`` when it is one (:func:`is_upload_folder`), never any other folder (a job
+    row's path is data: a restored or hand-made row naming a folder of the host must not delete it); whether it was
+    removed."""
+    if not is_upload_folder(path, files):
+        return False
+    shutil.rmtree(Path(path).resolve(), ignore_errors=True)
+    return True
+
+
+def confined_import(params: dict[str, Any], settings: Settings, files: DatasetFiles) -> dict[str, Any]:
+    """``params`` with the path the import reads checked (and, for an upload kept in the store, found on this node):
+
+    * ``upload_key``: ``uploads/<one name>``, read from this node's copy of it or the folder store's own folder;
+    * ``upload`` without a key (a job of an older v3d): its path is one upload's folder (:func:`is_upload_folder`);
+    * otherwise its path lies under the data root (``V3D_DATA_ROOT``), as the API's imports require, unless the
+      operator typed it on this machine's command line (:data:`COMMAND_LINE`).
+
+    Raises:
+        ForbiddenError: anything else, named (field ``path`` or ``upload_key``); nothing read.
+        FileNotFoundError: the upload is no longer in the store.
+    """
+    key = params.get("upload_key")
+    if key:
+        parts = str(key).split("/")
+        if len(parts) != 2 or parts[0] != UPLOADS or parts[1] in ("", ".", ".."):
+            raise ForbiddenError(f"upload_key: {str(key)[:200]!r} is not an upload's folder in the store "
+                                 f"({UPLOADS}/<name>): nothing imported")
+        return {**params, "path": str(files.upload_folder(str(key)).resolve())}  # as the import records it
+    if params.get("upload"):
+        if not is_upload_folder(params["path"], files):
+            raise ForbiddenError("path: an upload's folder lies in the server's uploads folder and this job's does "
+                                 "not: nothing imported")
+        return params
+    if COMMAND_LINE.get():
+        return params
+    try:
+        return {**params, "path": str(data_root.confined_path(params["path"], settings.data_root))}
+    except ForbiddenError:
+        raise ForbiddenError("path: a queued import reads only under the data root (V3D_DATA_ROOT); this job's "
+                             "path is not there: nothing imported (run `v3d import` on the machine to import "
+                             "another folder)") from None
 
 
 def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settings, progress: Progress,
@@ -123,7 +193,7 @@ def _import_and_rekey(session: Session, params: dict[str, Any], settings: Settin
         result = _import(session, params, settings, progress, job_id)
     except InvalidInputError:
         if params.get("upload"):
-            shutil.rmtree(params["path"], ignore_errors=True)
+            remove_upload(params["path"], files)
             if key:
                 files.storage.delete_tree(str(key))
         raise
@@ -296,8 +366,9 @@ def run_backup(session: Session, params: dict[str, Any], settings: Settings, pro
     """Back up the deployment as ``v3d backup`` does (``app.services.backup.snapshot.write_backup``; ``params
     ["local_files"]``, default true: the files of datasets read from this machine's folders too) to the job's archive
     ``job-<id>-backup.zip``, kept in the store as ``backups/<file>`` (an admin downloads it: it holds password and
-    token hashes). Its result: the archive's file, size, tables, rows, files and the count of named files not found.
-    Run again after a kill, it writes the archive again from a new snapshot."""
+    token hashes); once it is complete, the store's archives beyond the ``V3D_BACKUPS_KEPT`` newest are removed
+    (:func:`prune_backups`). Its result: the archive's file, size, tables, rows, files and the count of named files
+    not found. Run again after a kill, it writes the archive again from a new snapshot."""
     bind = session.get_bind()
     engine = bind if isinstance(bind, Engine) else bind.engine
     session.rollback()  # the snapshot reads in a transaction of its own
@@ -309,10 +380,61 @@ def run_backup(session: Session, params: dict[str, Any], settings: Settings, pro
     if storage.local_path(key) != target:  # a store of its own: the archive goes there, the scratch copy away
         storage.put_file(key, target)
         target.unlink(missing_ok=True)
+    prune_backups(storage, settings.backups_kept)  # only now that the new one is complete
     out = report.as_result()
     out.pop("destination")  # a path of the server's
     return {**out, "missing": len(report.missing), "file": name, "media_type": "application/zip",
             "filename": f"v3d-backup-{job_id}.zip"}
+
+
+#: The name of a backup job's archive in the store's ``backups`` folder, its job's id captured.
+_BACKUP_NAME = re.compile(r"job-(\d+)-backup\.zip")
+
+
+def _stored_backups(storage: Storage) -> list[StoredObject]:
+    """The backup jobs' archives of the store (``backups/job-<id>-backup.zip``), newest job first."""
+    found = [(int(m.group(1)), o) for o in storage.list(BACKUPS)
+             if (m := _BACKUP_NAME.fullmatch(o.key.removeprefix(f"{BACKUPS}/"))) is not None]
+    return [o for _, o in sorted(found, key=lambda pair: (pair[0], pair[1].modified), reverse=True)]
+
+
+
+def prune_backups(storage: Storage, kept: int) -> list[str]:
+    """Remove the backup jobs' archives of ``storage`` beyond the ``kept`` newest (``V3D_BACKUPS_KEPT``); the keys
+    removed (their jobs' downloads answer 404 then, as an export's past ``V3D_EXPORT_KEEP_HOURS``)."""
+    old = [o.key for o in _stored_backups(storage)[kept:]]
+    for key in old:
+        storage.delete(key)
+    return old
+
+
+def backup_room_refusal(settings: Settings) -> str | None:
+    """Why a new backup job cannot be written, in words, or None: the disk of the jobs folder (where the archive is
+    written first) or of a folder store (where it is kept) has less free space than the last backup's archive took.
+    A remote store is not measured from here."""
+    storage = storage_for(settings)
+    last = next(iter(_stored_backups(storage)), None)
+    if last is None:
+        return None
+    folders = [jobs_dir(settings) / BACKUPS]
+    own = storage.local_path(BACKUPS)
+    if own is not None:
+        folders.append(own)
+    seen: set[int] = set()
+    for folder in folders:
+        existing = folder.resolve()
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        device = existing.stat().st_dev
+        if device in seen:
+            continue
+        seen.add(device)
+        free = shutil.disk_usage(existing).free
+        if free < last.size:
+            return (f"the last backup's archive took {last.size / 2**20:,.1f} MB and the disk of {existing} has "
+                    f"{free / 2**20:,.1f} MB free: no backup was queued. Free some space, or keep fewer archives "
+                    f"(V3D_BACKUPS_KEPT, {settings.backups_kept} now)")
+    return None
 
 
 #: kind -> work (``app.services.jobs.runner.Work``).

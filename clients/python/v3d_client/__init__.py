@@ -10,7 +10,10 @@ Depends on httpx and pydantic only: it imports nothing of the server (``app``) a
 """
 from v3d_client.client import LEFT_OUT, ROUTES, Client
 from v3d_client.errors import (
+    AnswerTooLarge,
+    AnswerTooSlow,
     APIError,
+    BadAnswer,
     BadRequest,
     Busy,
     Conflict,
@@ -20,13 +23,16 @@ from v3d_client.errors import (
     JobFailed,
     JobTimeout,
     NotFound,
+    NotJSON,
     PreconditionRequired,
+    Redirected,
     ServerError,
     TooLarge,
     Unauthorized,
     Unreachable,
     V3DError,
     VersionMismatch,
+    WrongShape,
 )
 from v3d_client.models import (
     Annotator,
@@ -51,9 +57,10 @@ from v3d_client.models import (
 from v3d_client.version import __version__
 
 __all__ = [
-    "APIError", "Annotator", "AuditEntry", "BadRequest", "Batch", "Busy", "Client", "Comment", "Conflict", "Decision",
-    "Doubt", "EditConflict", "Forbidden", "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT",
-    "NotFound", "PredictionSource", "PreconditionRequired", "ROUTES", "Release", "ReleaseDiff", "ServerError", "Stats",
-    "System", "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError",
-    "VersionMismatch", "View", "__version__",
+    "APIError", "Annotator", "AnswerTooLarge", "AnswerTooSlow", "AuditEntry", "BadAnswer", "BadRequest", "Batch",
+    "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt", "EditConflict", "Forbidden", "Frame", "Game",
+    "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound", "NotJSON", "PreconditionRequired",
+    "PredictionSource", "ROUTES", "Redirected", "Release", "ReleaseDiff", "ServerError", "Stats", "System",
+    "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError", "VersionMismatch",
+    "View", "WrongShape", "__version__",
 ]

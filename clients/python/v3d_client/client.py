@@ -14,10 +14,17 @@ reads) and answers typed objects (``v3d_client.models``). What each method takes
 * **a busy server**: 503 and 429 are sent again after their ``Retry-After`` (at most ``retries`` times, each wait at
   most ``max_wait_s``), then raise :class:`~v3d_client.errors.Busy`; both mean nothing was done;
 * **uploads and downloads**: streamed from and to files, never whole in memory, with a progress callback;
-* **jobs**: :meth:`Client.wait` polls a job until it is done, with a progress callback and a timeout.
+* **jobs**: :meth:`Client.wait` polls a job until it is done, with a progress callback and a timeout;
+* **a hostile or broken server**: an answer is read in pieces up to ``max_answer_bytes`` and within
+  ``total_timeout_s`` (each read waits at most what is left of it), redirects are never followed, and an answer that is
+  not what the route promises (not JSON, JSON of another shape) is refused: each raises its own
+  :class:`~v3d_client.errors.BadAnswer` naming the server, the request and what it answered, never a traceback of
+  httpx, json or pydantic.
 """
 from __future__ import annotations
 
+import functools
+import inspect
 import os
 import tempfile
 import time
@@ -30,8 +37,22 @@ from pathlib import Path
 from typing import IO, Any, Optional, TypeVar
 
 import httpx
+from pydantic import ValidationError
 
-from v3d_client.errors import JobFailed, JobTimeout, Unreachable, V3DError, VersionMismatch, error_for
+from v3d_client.errors import (
+    AnswerTooLarge,
+    AnswerTooSlow,
+    BadAnswer,
+    JobFailed,
+    JobTimeout,
+    NotJSON,
+    Redirected,
+    Unreachable,
+    V3DError,
+    VersionMismatch,
+    WrongShape,
+    error_for,
+)
 from v3d_client.models import (
     Annotator,
     Annotators,
@@ -122,6 +143,13 @@ LEFT_OUT: dict[str, str] = {
 URL_ENV, TOKEN_ENV = "V3D_URL", "V3D_TOKEN"
 #: Bytes read or written at a time when streaming a file.
 CHUNK_BYTES = 1 << 20
+#: The longest answer a client reads into memory by default (bytes): a frame's image at the server's own bound
+#: (``V3D_MAX_IMAGE_MB``, 256 MB) fits; a body past it is refused at its first byte past (:class:`AnswerTooLarge`).
+MAX_ANSWER_BYTES = 256 << 20
+#: The longest time one request may take by default, from its sending to its answer's last byte (s).
+TOTAL_TIMEOUT_S = 120.0
+#: How much of an answer a refusal quotes (characters).
+QUOTED_CHARS = 80
 
 _M = TypeVar("_M", bound=Model)
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -179,6 +207,55 @@ class _Reading:
         return self._file.seek(offset, whence)
 
 
+def _quoted(text: Any) -> str:
+    """``text`` as a refusal quotes it: at most :data:`QUOTED_CHARS` characters, every one printable."""
+    shown = "".join(c if c.isprintable() else "?" for c in str(text)[:QUOTED_CHARS])
+    return repr(shown + ("..." if len(str(text)) > QUOTED_CHARS else ""))
+
+
+def _answered(client: "Client", exc: ValueError) -> BadAnswer:
+    """The :class:`BadAnswer` of an answer that failed to parse (``exc`` from json or pydantic), naming the server,
+    the request and what it answered (its status, type and first characters)."""
+    method, path, response = client._last
+    status = response.status_code if response is not None else None
+    kind = response.headers.get("content-type", "no type") if response is not None else "no type"
+    try:
+        start = response.text if response is not None else ""
+    except Exception:  # noqa: BLE001  # a streamed answer not read: nothing to quote
+        start = ""
+    said = f"{client.url} answered {method} {path} with {status} ({kind}) {_quoted(start)}"
+    if isinstance(exc, ValidationError):
+        first = exc.errors()[0] if exc.errors() else {"loc": (), "msg": str(exc)}
+        where = ".".join(str(p) for p in first.get("loc", ())) or "the answer"
+        return WrongShape(f"{said}: not the shape of its route ({where}: {first.get('msg')})", status)
+    return NotJSON(f"{said}: not JSON ({exc})", status)
+
+
+def _refusing_bad_answers(method: Callable[..., Any]) -> Callable[..., Any]:
+    """``method`` of :class:`Client` with a ValueError of its answer's parsing raised as :func:`_answered`'s
+    :class:`BadAnswer` (a generator's too, at each item)."""
+    if inspect.isgeneratorfunction(method):
+        @functools.wraps(method)
+        def each(self: "Client", *args: Any, **kwargs: Any) -> Iterator[Any]:
+            try:
+                yield from method(self, *args, **kwargs)
+            except V3DError:
+                raise
+            except ValueError as exc:
+                raise _answered(self, exc) from None
+        return each
+
+    @functools.wraps(method)
+    def call(self: "Client", *args: Any, **kwargs: Any) -> Any:
+        try:
+            return method(self, *args, **kwargs)
+        except V3DError:
+            raise
+        except ValueError as exc:
+            raise _answered(self, exc) from None
+    return call
+
+
 def zip_folder(folder: Path, target: Path) -> Path:
     """Write the files under ``folder`` into the zip ``target``, named relative to ``folder`` (``/``-separated),
     stored without compression (a dataset's images and Frames-v3.zip are compressed already). Returns ``target``.
@@ -205,6 +282,10 @@ class Client:
             its first call).
         timeout: seconds a request may take to connect, to send or to answer a piece (a download's whole may take
             longer).
+        total_timeout_s: seconds a request may take in all, answer read (not a download's file): past it,
+            :class:`AnswerTooSlow`.
+        max_answer_bytes: the longest answer read into memory (JSON, a frame's image): past it,
+            :class:`AnswerTooLarge`.
         retries: how many times a request answered 503 or 429 is sent again (its ``Retry-After`` waited first).
         max_wait_s: the longest ``Retry-After`` the client waits; a longer one raises :class:`Busy` at once.
         check_version: read the server's version at the first call and refuse one of another series.
@@ -216,7 +297,8 @@ class Client:
 
     def __init__(self, url: str, token: Optional[str] = None, *, name: Optional[str] = None,
                  password: Optional[str] = None, timeout: float = 60.0, retries: int = 5, max_wait_s: float = 30.0,
-                 check_version: bool = True, transport: Optional[httpx.BaseTransport] = None) -> None:
+                 check_version: bool = True, transport: Optional[httpx.BaseTransport] = None,
+                 total_timeout_s: float = TOTAL_TIMEOUT_S, max_answer_bytes: int = MAX_ANSWER_BYTES) -> None:
         if not token and not (name and password is not None):
             raise V3DError("give an API token (V3D_TOKEN) or a name and password")
         headers = {"User-Agent": f"v3d-client/{__version__}", "Accept": "application/json"}
@@ -228,6 +310,8 @@ class Client:
         self._login = (name, password) if not token else None
         self._csrf: Optional[str] = None
         self.retries, self.max_wait_s = retries, max_wait_s
+        self.timeout, self.total_timeout_s, self.max_answer_bytes = timeout, total_timeout_s, max_answer_bytes
+        self._last: tuple[str, str, Optional[httpx.Response]] = ("", "", None)  # what :func:`_answered` names
         self._version_checked = not check_version
         self.server_version: Optional[str] = None
 
@@ -292,29 +376,107 @@ class Client:
         if self._csrf and method != "GET":
             headers["X-CSRF-Token"] = self._csrf
         query = {k: v for k, v in (params or {}).items() if v is not None}
+        self._last = (method, path, None)
         for attempt in range(self.retries + 1):
+            # an upload's body takes what its size takes (each piece bounded by ``timeout``): its answer's time is
+            # counted from when the answer began
+            deadline = time.monotonic() + self.total_timeout_s if upload is None else None
             with ExitStack() as files:
                 parts = upload(files) if upload is not None else {}
-                request = self._http.build_request(method, path, params=query, json=json, headers=headers, **parts)
+                timeout = self._timeout_until(deadline, method, path) if deadline is not None else self.timeout
+                request = self._http.build_request(method, path, params=query, json=json, headers=headers,
+                                                   timeout=timeout, **parts)
                 try:
-                    response = self._http.send(request, stream=stream)
+                    response = self._http.send(request, stream=True)
+                except httpx.TimeoutException as exc:
+                    if deadline is not None and time.monotonic() >= deadline:
+                        raise self._too_slow(method, path, None) from exc
+                    raise Unreachable(f"{self.url}: {type(exc).__name__}: {exc}") from exc
                 except httpx.TransportError as exc:
                     raise Unreachable(f"{self.url}: {type(exc).__name__}: {exc}") from exc
-                if response.status_code < 400:
+                if deadline is None:
+                    deadline = time.monotonic() + self.total_timeout_s
+                if 300 <= response.status_code < 400:
+                    response.close()
+                    where = response.headers.get("location")
+                    raise Redirected(f"{self.url} answered {response.status_code} {response.reason_phrase} to "
+                                     f"{method} {path}{f' (to {_quoted(where)})' if where else ''}: v3d never "
+                                     f"follows a redirect; give the server's own URL", response.status_code)
+                if response.status_code < 400 and stream:
+                    self._last = (method, path, response)
                     return response
+                if response.status_code < 400:
+                    answer = self._read(response, deadline, method, path)
+                    self._last = (method, path, answer)
+                    return answer
                 wait = _retry_after(response)
                 busy = response.status_code in (429, 503)
                 if busy and attempt < self.retries and (wait is None or wait <= self.max_wait_s):
                     response.close()
                     time.sleep(wait if wait is not None else min(self.max_wait_s, 0.5 * 2 ** attempt))
                     continue
-                response.read()
+                answer = self._read(response, deadline, method, path)
                 try:
-                    body = response.json()
+                    body = answer.json()
                 except ValueError:
                     body = None
                 raise error_for(response.status_code, body, response.reason_phrase, wait)
         raise AssertionError("unreachable: the last attempt returns or raises")
+
+    def _timeout_until(self, deadline: float, method: str, path: str) -> httpx.Timeout:
+        """Each wait of a request (to connect, to send a piece, to read a piece) at most ``timeout`` and at most what
+        is left until ``deadline``."""
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise self._too_slow(method, path, None)
+        return httpx.Timeout(min(self.timeout, left), connect=min(self.timeout, left, 10.0))
+
+    def _too_slow(self, method: str, path: str, status: Optional[int]) -> AnswerTooSlow:
+        return AnswerTooSlow(f"{self.url} did not answer {method} {path} completely within {self.total_timeout_s:g} "
+                             f"s{f' (status {status})' if status is not None else ''}: a body that never ends or "
+                             f"comes a byte at a time; nothing more was read", status)
+
+    def _read(self, response: httpx.Response, deadline: float, method: str, path: str) -> httpx.Response:
+        """The streamed ``response`` read whole, in pieces, within ``deadline`` and ``max_answer_bytes`` (closed
+        either way), as an answer held in memory.
+
+        Raises:
+            AnswerTooLarge, AnswerTooSlow: past either bound; Unreachable: the connection failed.
+        """
+        declared = response.headers.get("content-length")
+        if declared is not None and declared.isdigit() and int(declared) > self.max_answer_bytes:
+            response.close()
+            raise self._too_large(method, path, response.status_code, f"its Content-Length is {int(declared):,}")
+        chunks, size = [], 0
+        try:
+            for chunk in response.iter_bytes():  # each piece as it arrives (a chunk size would wait to fill it)
+                size += len(chunk)
+                if size > self.max_answer_bytes:
+                    raise self._too_large(method, path, response.status_code, "it sent more")
+                chunks.append(chunk)
+                if time.monotonic() >= deadline:
+                    raise self._too_slow(method, path, response.status_code)
+        except httpx.TimeoutException as exc:
+            raise self._too_slow(method, path, response.status_code) from exc
+        except httpx.DecodingError as exc:
+            raise NotJSON(f"{self.url} answered {method} {path} with {response.status_code} in an encoding that "
+                          f"does not decode ({response.headers.get('content-encoding')}: {exc})",
+                          response.status_code) from None
+        except httpx.TransportError as exc:
+            raise Unreachable(f"{self.url}: {type(exc).__name__} while reading the answer to {method} {path}: "
+                              f"{exc}") from exc
+        finally:
+            response.close()
+        # the body as decoded: its headers without the encoding and length of the bytes that came
+        headers = [(k, v) for k, v in response.headers.multi_items()
+                   if k.lower() not in ("content-encoding", "content-length", "transfer-encoding")]
+        return httpx.Response(response.status_code, headers=headers, content=b"".join(chunks),
+                              request=response.request)
+
+    def _too_large(self, method: str, path: str, status: int, said: str) -> AnswerTooLarge:
+        return AnswerTooLarge(f"{self.url} answered {method} {path} (status {status}) with more than "
+                              f"{self.max_answer_bytes:,} bytes ({said}), the most this client reads; nothing more "
+                              f"was read", status)
 
     def _get(self, path: str, answer: type[_M], **params: Any) -> _M:
         return answer.model_validate(self._send("GET", path, params=params).json())
@@ -821,3 +983,8 @@ def _segment(name: str) -> str:
     from urllib.parse import quote
 
     return quote(name, safe="")
+
+
+for _name, _method in list(vars(Client).items()):  # every public call: an answer that does not parse is a BadAnswer
+    if not _name.startswith("_") and inspect.isfunction(_method):
+        setattr(Client, _name, _refusing_bad_answers(_method))

@@ -1,9 +1,10 @@
 """The errors a v3d client raises: one class per refusal a script handles differently, each with the server's words.
 
 Every answer of 4xx or 5xx is an :class:`APIError` carrying its ``status``, the server's sentence (``detail``) and,
-when the server names it, the ``field`` at fault. The subclasses are the answers a script reacts to:
-:class:`EditConflict` (412: someone changed what the edit was made against; it holds the state now and the changes
-since), :class:`Busy` (503 or 429 still, after the client's bounded retries), the others by status.
+when the server names it, the ``field`` at fault. An answer the route does not promise (not JSON, another shape, a
+redirect, past the client's size or time bound) is a :class:`BadAnswer`. The subclasses are the answers a script
+reacts to: :class:`EditConflict` (412: someone changed what the edit was made against; it holds the state now and the
+changes since), :class:`Busy` (503 or 429 still, after the client's bounded retries), the others by status.
 """
 from __future__ import annotations
 
@@ -22,6 +23,37 @@ class VersionMismatch(V3DError):
 
 class Unreachable(V3DError):
     """The server did not answer (no connection, a timeout, the connection cut); the request may not have arrived."""
+
+
+class BadAnswer(V3DError):
+    """The server answered what its route does not promise: the subclasses say how. ``status`` is the answer's HTTP
+    status (None when none came); the message names the server, the request and what it answered, in one line."""
+
+    def __init__(self, message: str, status: Optional[int] = None) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+class NotJSON(BadAnswer):
+    """An answer that is not JSON where the route answers JSON (an HTML page of a proxy, a truncated body)."""
+
+
+class WrongShape(BadAnswer):
+    """JSON of another shape than the route's (a field missing or of another type)."""
+
+
+class Redirected(BadAnswer):
+    """A redirect (3xx): the client never follows one (the token would go where the URL did not name); give the
+    server's own URL."""
+
+
+class AnswerTooLarge(BadAnswer):
+    """An answer longer than the client reads into memory (``max_answer_bytes``): refused at the first byte past it."""
+
+
+class AnswerTooSlow(BadAnswer):
+    """An answer not complete within the client's total time for one request (``total_timeout_s``): a body that
+    never ends, or one sent a byte at a time."""
 
 
 class APIError(V3DError):

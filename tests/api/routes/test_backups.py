@@ -76,3 +76,37 @@ def test_the_archive_is_downloaded_by_admins_only(app: FastAPI, accounts: dict[s
         with TestClient(app) as anonymous:
             assert anonymous.get(url).status_code == 401
         assert admin.get(url).content[:2] == b"PK"
+
+
+def test_the_store_keeps_the_newest_archives_and_refuses_one_it_has_no_room_for(app: FastAPI,
+                                                                                 accounts: dict[str, Account]):
+    """V3D_BACKUPS_KEPT=2: three backups leave the two newest archives (the oldest's download 404); an archive that
+    took more than the disk has free refuses the next backup in words (409), nothing queued."""
+    import shutil
+
+    from app.services.jobs.work import backup_key
+    from app.services.storage import storage_for
+
+    app.state.settings = app.state.settings.model_copy(update={"backups_kept": 2})
+    settings = app.state.settings
+    storage = storage_for(settings)
+    with as_token(TestClient(app), accounts["admin"]) as script:
+        ids = []
+        for _ in range(3):
+            made = script.post("/api/backups", json={"local_files": False})
+            assert made.status_code == 202, made.text
+            ids.append(made.json()["id"])
+            assert run_queued(app) == [ids[-1]]
+        kept = sorted(o.key for o in storage.list("backups") if o.key.endswith("-backup.zip"))
+        assert kept == sorted(backup_key(f"job-{i}-backup.zip") for i in ids[1:])
+        assert script.get(f"/api/jobs/{ids[0]}/result").status_code == 404
+        assert script.get(f"/api/jobs/{ids[2]}/result").status_code == 200
+        # the newest archive as large as the disk's free space and more (a sparse file: it takes no room itself)
+        newest = storage.local_path(backup_key(f"job-{ids[2]}-backup.zip"))
+        assert newest is not None
+        with open(newest, "r+b") as f:
+            f.truncate(shutil.disk_usage(newest.parent).free + (1 << 30))
+        refused = script.post("/api/backups", json={"local_files": False})
+        assert refused.status_code == 409 and "no backup was queued" in refused.json()["detail"] \
+            and "V3D_BACKUPS_KEPT" in refused.json()["detail"], refused.text
+        assert run_queued(app) == []

@@ -325,3 +325,337 @@ def _fresh_settings() -> Iterator[None]:
     get_settings.cache_clear()
     yield
     get_settings.cache_clear()
+
+
+def test_jobs_an_archive_held_queued_or_running_are_kept_failed_never_run_here(tmp_path, monkeypatch):
+    """A job row names the machine that made it (an import's folder, an upload to clean up): restored elsewhere, a
+    queued or running one is failed with words, and no runner of the target claims it."""
+    from app.db.models import Job, JobState
+    from app.services.backup.restore import NOT_RUN_HERE
+    from app.services.jobs import runner as jobs
+
+    env = deployment(tmp_path / "source")
+    migrate_new_database(env["V3D_DATABASE_URL"])
+    engine = make_engine(env["V3D_DATABASE_URL"])
+    with Session(engine) as session:
+        for state in (JobState.QUEUED, JobState.RUNNING, JobState.DONE):
+            session.add(Job(kind="import", state=state, owner="elsewhere:1:t" if state is JobState.RUNNING else None,
+                            params={"kind": "soccernet-v3", "path": "/home/someone", "upload": True}))
+        session.commit()
+    engine.dispose()
+    archive = tmp_path / "a.zip"
+    assert invoke(env, monkeypatch, "backup", str(archive)).exit_code == 0
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 0 and "2 job(s)" in result.output, result.output
+    stored = rows(target["V3D_DATABASE_URL"])["jobs"]
+    assert [(j["state"], j["message"]) for j in stored] == [
+        (JobState.FAILED, NOT_RUN_HERE), (JobState.FAILED, NOT_RUN_HERE), (JobState.DONE, None)]
+    settings = Settings(_env_file=None, database_url=target["V3D_DATABASE_URL"])
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    try:
+        from app.db.session import make_session_factory
+
+        assert jobs.claim_next(make_session_factory(engine), "here:1:t", settings) is None
+    finally:
+        engine.dispose()
+
+
+def forged(archive: Path, target: Path, change: Any, declared: dict[str, int] | None = None) -> Path:
+    """``archive`` changed by hand as an attacker would: ``change(members, manifest)`` edits the members' bytes
+    (name -> bytes) and the manifest (a dict), then every member's SHA-256 and size are redone to match (so the
+    restore itself is tested, not the digest), but the sizes ``declared`` (name -> bytes), which the manifest says
+    instead."""
+    import hashlib
+
+    with zipfile.ZipFile(archive) as zin:
+        manifest = json.loads(zin.read(MANIFEST))
+        members = {n: zin.read(n) for n in zin.namelist() if n != MANIFEST}
+    change(members, manifest)
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name, data in members.items():
+            zout.writestr(name, data)
+            manifest["members"][name] = {"sha256": hashlib.sha256(data).hexdigest(),
+                                         "size": (declared or {}).get(name, len(data))}
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    return target
+
+
+def _nothing_written(target: dict[str, str]) -> bool:
+    return (not Path(target["V3D_DATABASE_URL"].removeprefix("sqlite:///")).exists()
+            and not Path(target["V3D_STORAGE_URL"].removeprefix("file://")).exists())
+
+
+def test_a_member_larger_than_its_manifest_declares_is_refused_before_writing(archive, tmp_path, monkeypatch):
+    """A store member that inflates to 8 MiB (the review's was 2 GiB: the bound is the same byte) while the manifest
+    declares 4,096 bytes, its digest redone: refused naming it, nothing written."""
+    with zipfile.ZipFile(archive) as zf:
+        name = next(n for n in zf.namelist() if n.startswith(("store/", "local/")))
+
+    def inflate(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        members[name] = bytes(8 << 20)
+
+    hacked = forged(archive, tmp_path / "bomb.zip", inflate, declared={name: 4096})
+    assert hacked.stat().st_size < 1 << 20  # zeros deflate a thousandfold
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and f"{name}: the zip says it holds 8,388,608 bytes, the manifest 4,096" in \
+        result.output and "nothing was restored" in result.output, result.output
+    assert _nothing_written(target)
+
+
+def test_an_archive_that_does_not_fit_the_disk_is_refused_before_writing(archive, tmp_path, monkeypatch):
+    target = deployment(tmp_path / "target")
+    result = invoke({**target, "V3D_RESTORE_SPARE_MB": str(1 << 40)}, monkeypatch, "restore", str(archive))
+    assert result.exit_code == 2 and "V3D_RESTORE_SPARE_MB" in result.output and "MB free" in result.output, \
+        result.output
+    assert _nothing_written(target)
+
+
+def test_a_row_longer_than_the_bound_is_refused_at_the_bound(archive, tmp_path, monkeypatch):
+    """A table member of one 2 MiB line (the review's was 1.5 GiB), the bound 1 MiB: refused naming the member, the
+    line and the setting, with no more than the bound held."""
+    def long_row(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        members["tables/audit_entries.jsonl"] = b"[" + b" " * (2 << 20) + b"]\n"
+
+    hacked = forged(archive, tmp_path / "long.zip", long_row)
+    target = deployment(tmp_path / "target")
+    result = invoke({**target, "V3D_RESTORE_MAX_LINE_MB": "1"}, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and "tables/audit_entries.jsonl: line 1 is longer than 1,048,576 bytes" in \
+        result.output and "V3D_RESTORE_MAX_LINE_MB" in result.output, result.output
+    assert _nothing_written(target)
+
+
+@pytest.mark.parametrize("column, value", [("image_root", "/etc"), ("image_root", "elsewhere"),
+                                           ("image_path", "/etc/hostname"), ("image_zip", "../../secret.zip")])
+def test_a_frame_naming_a_file_outside_the_archive_is_refused_in_words(archive, tmp_path, monkeypatch, column, value):
+    def point_out(members: dict[str, bytes], manifest: dict[str, Any]) -> None:
+        entry = next(t for t in manifest["tables"] if t["name"] == "frames")
+        at = [c for c, _ in entry["columns"]].index(column)
+        rows_ = [json.loads(line) for line in members[entry["member"]].splitlines() if line.strip()]
+        rows_[0][at] = value
+        members[entry["member"]] = b"".join(json.dumps(r).encode() + b"\n" for r in rows_)
+
+    hacked = forged(archive, tmp_path / "out.zip", point_out)
+    target = deployment(tmp_path / "target")
+    result = invoke(target, monkeypatch, "restore", str(hacked))
+    assert result.exit_code == 2 and "tables/frames.jsonl: frame" in result.output and value in result.output \
+        and "nothing was restored" in result.output, result.output
+    assert _nothing_written(target)
+
+
+
+def test_a_backup_is_a_secret_on_disk(source, tmp_path, monkeypatch):
+    """The archive and its ``.part`` (what a kill mid-backup leaves) are mode 0600 whatever the umask; a DEST that is
+    a symbolic link is refused, its target untouched; a ``.part`` a killed backup left is named by the next one."""
+    import os
+    import stat
+
+    from app.services.backup.archive import ArchiveWriter, Manifest
+
+    old = os.umask(0o022)
+    try:
+        part = tmp_path / ".killed.zip.part"
+        ArchiveWriter(part, Manifest("x", "x", "b", "t", "sqlite")).member("tables/x.jsonl", True).write(b"[1]\n")
+        assert stat.S_IMODE(part.stat().st_mode) == 0o600  # as a SIGKILL here leaves it
+        part.chmod(0o644)  # one an older v3d left
+        target = tmp_path / "v3d-backup.zip"
+        result = invoke(source["env"], monkeypatch, "backup", str(target))
+        assert result.exit_code == 0, result.output
+        assert stat.S_IMODE(target.stat().st_mode) == 0o600
+        assert f"{part} was left by a backup that did not finish" in result.output, result.output
+        other = tmp_path / "notes.txt"
+        other.write_text("not a backup")
+        link = tmp_path / "link.zip"
+        link.symlink_to(other)
+        result = invoke(source["env"], monkeypatch, "backup", str(link))
+        assert result.exit_code == 1 and "symbolic link" in result.output, result.output
+        assert other.read_text() == "not a backup" and link.is_symlink()
+    finally:
+        os.umask(old)
+
+
+def _served_target(tmp_path: Path, url: str | None = None) -> tuple[dict[str, str], Settings]:
+    """A target deployment holding data (a user), with the settings a server of it runs with."""
+    target = deployment(tmp_path / "target")
+    if url is not None:
+        target["V3D_DATABASE_URL"] = url
+    migrate_new_database(target["V3D_DATABASE_URL"])
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    with Session(engine) as session:
+        create_user(session, "kept", "reviewer", PASSWORD)
+    engine.dispose()
+    return target, Settings(_env_file=None, database_url=target["V3D_DATABASE_URL"],
+                            storage_url=target["V3D_STORAGE_URL"], jobs_dir=Path(target["V3D_JOBS_DIR"]))
+
+
+def _holder(url: str) -> Any:
+    """Another process holding the database's in-use lock as a server does (``app.db.in_use.using``), ready."""
+    import subprocess
+    import sys
+
+    code = ("import sys, time\nfrom app.db.in_use import using\nwith using(sys.argv[1], 'server'):\n"
+            "    print('ready', flush=True)\n    time.sleep(600)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code, url], stdout=subprocess.PIPE,
+                            cwd=Path(__file__).resolve().parents[3])
+    assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
+    return proc
+
+
+@pytest.mark.processes
+def test_a_restore_refuses_a_database_a_server_uses_and_a_dead_servers_lock_does_not_block(archive, tmp_path,
+                                                                                             monkeypatch):
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+
+    target, settings = _served_target(tmp_path)
+    url = target["V3D_DATABASE_URL"]
+    held = rows(url)
+    with TestClient(create_app(settings)):  # a served app (its lifespan runs)
+        result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+        assert result.exit_code == 2 and "in use by a v3d server or job runner" in result.output \
+            and "fuser -v" in result.output and "Nothing was restored" in result.output, result.output
+        assert rows(url) == held
+    server = _holder(url)  # a server of another process, then killed: its lock goes with it
+    try:
+        assert invoke(target, monkeypatch, "restore", "--replace", str(archive)).exit_code == 2
+    finally:
+        server.kill()
+        server.wait()
+    result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+    assert result.exit_code == 0, result.output
+    assert [u["name"] for u in rows(url)["users"]] == ["ana"]
+
+
+@pytest.mark.postgres
+@pytest.mark.processes
+def test_a_restore_refuses_a_postgresql_database_a_server_uses(archive, tmp_path, monkeypatch, pg_url):
+    import time
+
+    target = {**deployment(tmp_path / "target"), "V3D_DATABASE_URL": pg_url}
+    server = _holder(pg_url)  # a server of an empty database (it may serve one)
+    try:
+        result = invoke(target, monkeypatch, "restore", str(archive))
+        assert result.exit_code == 2 and "advisory lock" in result.output and "v3d server" in result.output, \
+            result.output
+    finally:
+        server.kill()
+        server.wait()
+    deadline = time.monotonic() + 20  # PostgreSQL ends the dead client's session once its socket closes
+    while (result := invoke(target, monkeypatch, "restore", str(archive))).exit_code == 2 \
+            and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.postgres
+def test_a_restore_replaces_a_migrated_postgresql_database(archive, tmp_path, monkeypatch, pg_url):
+    """--replace onto a PostgreSQL database that holds data: the migrations' functions go with its tables."""
+    target, _settings = _served_target(tmp_path, pg_url)
+    result = invoke(target, monkeypatch, "restore", "--replace", str(archive))
+    assert result.exit_code == 0, result.output
+    assert [u["name"] for u in rows(pg_url)["users"]] == ["ana"]
+
+
+@pytest.mark.parametrize("admin", ["boss", "ana"])
+def test_new_secrets_void_the_archives_keys_tokens_and_accounts_but_the_restoring_admin(source, archive, tmp_path,
+                                                                                         monkeypatch, admin):
+    """An archive someone else made: its session key, its tokens and its accounts (the author's admin among them) do
+    not work on the target; the restoring admin (new, or an account of the archive taken over) does, with the password
+    given and the one token printed."""
+    from app.db.models import ServerSecret
+
+    target = deployment(tmp_path / "target")
+    for name, value in target.items():
+        monkeypatch.setenv(name, value)
+    get_settings.cache_clear()
+    try:
+        result = CliRunner().invoke(cli_main(), ["restore", "--new-secrets", admin, "--password-stdin",
+                                                 str(archive)], input="a new long password\n")
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 0 and "1 API token(s) revoked" in result.output, result.output
+    token = result.stdout.strip().splitlines()[-1]
+    engine = make_engine(target["V3D_DATABASE_URL"])
+    source_engine = make_engine(source["url"])
+    try:
+        with Session(engine) as session, Session(source_engine) as old:
+            assert resolve_token(session, source["token"]) is None
+            assert authenticate_password(session, "ana", PASSWORD) is None
+            user = resolve_token(session, token)
+            assert isinstance(user, User) and user.name == admin and user.role.value == "admin"
+            assert authenticate_password(session, admin, "a new long password") is not None
+            disabled = {u.name: u.disabled for u in session.scalars(sa.select(User))}
+            assert disabled == ({"ana": True, "boss": False} if admin == "boss" else {"ana": False})
+            archived = old.get(ServerSecret, "session")
+            assert archived is not None and session.get(ServerSecret, "session") is None  # made anew at the next start
+            from app.db.models import AuditEntry
+
+            entry = session.scalars(sa.select(AuditEntry).where(AuditEntry.action == "user.take_over")).one()
+            assert entry.actor == admin and "1 API token revoked" in entry.summary, entry.summary
+    finally:
+        engine.dispose()
+        source_engine.dispose()
+
+
+def _forged_big(archive: Path, target: Path, member: str, pieces: Any, declared: int) -> Path:
+    """``archive`` with ``member`` (new or replaced) written from the byte strings ``pieces`` as they come, never
+    whole in memory, its digest redone and its size declared ``declared``; the rest copied."""
+    import hashlib
+
+    with zipfile.ZipFile(archive) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        manifest = json.loads(zin.read(MANIFEST))
+        for name in zin.namelist():
+            if name not in (MANIFEST, member):
+                zout.writestr(name, zin.read(name))
+        digest = hashlib.sha256()
+        info = zipfile.ZipInfo(member)
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with zout.open(info, "w", force_zip64=True) as out:
+            for piece in pieces:
+                digest.update(piece)
+                out.write(piece)
+        manifest["members"][member] = {"sha256": digest.hexdigest(), "size": declared}
+        for entry in manifest["members"].values():
+            entry.pop("stored_sha256", None)
+        zout.writestr(MANIFEST, json.dumps(manifest))
+    return target
+
+
+@pytest.mark.slow
+@pytest.mark.processes
+def test_the_reviews_full_size_archives_are_refused_with_bounded_memory(archive, tmp_path, monkeypatch):
+    """The review's sizes at the default settings: a store member inflating to 2 GiB while declaring 4,096 bytes, and
+    a table member of one 1.5 GiB line (its size declared truly): both refused naming the member, nothing written, the
+    restore's memory well below the line's size."""
+    import resource
+    import subprocess
+    import sys
+
+    with zipfile.ZipFile(archive) as zf:
+        store = next(n for n in zf.namelist() if n.startswith(("store/", "local/")))
+    zeros = bytes(1 << 24)
+    bomb = _forged_big(archive, tmp_path / "bomb.zip", store, (zeros for _ in range(128)), 4096)  # 2 GiB
+    line = (b"[" if i == 0 else (b"]\n" if i == 96 else b" " * (1 << 24)) for i in range(97))  # 1.48 GiB
+    long_row = _forged_big(archive, tmp_path / "long.zip", "tables/audit_entries.jsonl", line, (95 << 24) + 3)
+    assert bomb.stat().st_size < 16 << 20 and long_row.stat().st_size < 16 << 20
+    for hacked, words in ((bomb, f"{store}: the zip says it holds 2,147,483,648 bytes, the manifest 4,096"),
+                          (long_row, "tables/audit_entries.jsonl: line 1 is longer than 67,108,864 bytes")):
+        target = deployment(tmp_path / f"target-{hacked.stem}")
+        done = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "restore", str(hacked)],
+                              env={**__import__("os").environ, **target}, capture_output=True, text=True,
+                              timeout=600, cwd=Path(__file__).resolve().parents[3])
+        assert done.returncode == 2 and words in done.stderr, done.stderr
+        assert _nothing_written(target)
+    assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss < 600 << 10  # KiB: the largest restore's peak
+
+
+def test_a_lines_length_is_followed_across_the_chunks_it_is_read_in():
+    from app.services.backup.archive import LineTooLong, _LineBound
+
+    bound = _LineBound("tables/t.jsonl", 5)
+    for chunk in (b"abc", b"de\n", b"", b"\nab", b"cde\nx"):  # lines of 5, 0, 5 and 1 bytes: each within
+        bound.feed(chunk)
+    with pytest.raises(LineTooLong, match="tables/t.jsonl: line 4 is longer than 5 bytes"):
+        bound.feed(b"yzabc")  # the fourth line: 6 bytes

@@ -143,7 +143,7 @@ def test_token_bookkeeping_never_fails_an_import_and_a_failed_job_says_words(sha
             with make() as other:
                 assert users.resolve_token(other, token) is not None  # the request itself is answered
 
-    job = jobs.run_job(make, job_id, settings, owner, progress=scrape)
+    job = jobs.run_job(make, job_id, settings, owner, progress=scrape, command_line=True)  # as `v3d import`
     assert (job.state, job.message, job.attempts) == (JobState.DONE, None, 1), job.message
     assert used and job.result["systems"] == 3
     with make() as session:
@@ -221,7 +221,7 @@ def test_a_page_claiming_its_system_during_an_import_batch_never_fails_the_impor
             claims[-1].start()
             claims[-1].join(timeout=0.5)  # committed unless it waits for the import's write lock
 
-    job = jobs.run_job(make, job_id, settings, owner, progress=heartbeat)
+    job = jobs.run_job(make, job_id, settings, owner, progress=heartbeat, command_line=True)  # as `v3d import`
     for t in claims:
         t.join(timeout=120)
     assert (job.state, job.message) == (JobState.DONE, None), job.message
