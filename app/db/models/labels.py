@@ -84,8 +84,9 @@ class System(Base):
         sa.Index("ix_systems_review_status_label_doubts_worst_error_px", "review_status", "label_doubts",
                  "worst_error_px"),
         sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
-        sa.Index("ix_systems_review_status_label_severity_worst_error_px", "review_status", "label_severity",
-                 "worst_error_px"),
+        # the default order within a review status, the id included: the pending queue's page is a seek
+        sa.Index("ix_systems_review_status_severity_error_doubts_id", "review_status", "label_severity",
+                 "worst_error_px", "label_doubts", "id"),
         sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
         # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
         # order within a game as an index walk
