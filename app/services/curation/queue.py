@@ -72,7 +72,7 @@ def _to_review_first() -> Any:
     """SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one (the ``severity`` order's first key), written as
     the index ``ix_systems_review_order_severity`` writes it (``REVIEW_ORDER_SQL``: literals, no bound parameter),
     so that both engines read the order from that index."""
-    whens = [(sa.literal_column(f"'{s.value}'"), sa.literal_column("0")) for s in TO_REVIEW]
+    whens: list[tuple[Any, Any]] = [(sa.literal_column(f"'{s.value}'"), sa.literal_column("0")) for s in TO_REVIEW]
     return sa.type_coerce(sa.case(*whens, value=System.review_status, else_=sa.literal_column("1")), sa.Integer)
 
 
