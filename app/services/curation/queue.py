@@ -29,7 +29,10 @@ equal to the cursor on every key but the last and beyond it on the last, then th
 but the last two, ... (the seek of :func:`queue_neighbours`, with a ``LIMIT`` of a page), and, from the
 start of the queue, a key whose NULLs come last as its values, then its NULLs. No slice needs ``NULLS
 LAST`` on a column that holds NULLs, so no page sorts the queue; a deep ``offset`` skips ids along the
-sort's index (covering: the sort keys and the row id) and reads the rows of the page only.
+sort's index (covering: the sort keys and the row id) and reads the rows of the page only. The ``severity`` order's
+first key (work to do or decided) takes two values: its slices are one per value (an equality, never a range), so that
+the keys after it are read in the order of its index (``ix_systems_review_order_severity``) whatever their direction,
+and no ORDER BY names a key its slice holds equal (SQLite would sort instead of reading the index).
 """
 from __future__ import annotations
 
