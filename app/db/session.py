@@ -242,19 +242,12 @@ POSTGRES_OPTIONS = {"jit": "off"}
 
 def refresh_statistics(session: Session) -> None:
     """Refresh the planner's statistics after a bulk change (migrations, an import), in their own step:
-    ``VACUUM (ANALYZE)`` on PostgreSQL (a server whose autovacuum is off, or has not run yet, would plan the edits'
-    queries on empty statistics, and, without the visibility map a vacuum sets, count the queue's statuses by reading
-    the table instead of the status index alone; ``ANALYZE`` alone when the session's connection is already in a
-    transaction, where no vacuum can run), ``PRAGMA optimize`` on SQLite (analyses the tables whose statistics it
-    needs). Commits the session first."""
+    ``ANALYZE`` on PostgreSQL (a server whose autovacuum is off, or has not run yet, would plan the edits' queries
+    on empty statistics), ``PRAGMA optimize`` on SQLite (analyses the tables whose statistics it needs). Commits
+    the session first."""
     session.commit()
-    bind = session.get_bind()
-    if bind.dialect.name == "postgresql":
-        if isinstance(bind, sa.Engine):
-            with bind.connect().execution_options(isolation_level="AUTOCOMMIT") as conn:
-                conn.exec_driver_sql("VACUUM (ANALYZE)")
-        else:
-            session.execute(sa.text("ANALYZE"))
+    if session.get_bind().dialect.name == "postgresql":
+        session.execute(sa.text("ANALYZE"))
     else:
         session.execute(sa.text("PRAGMA optimize"))
     session.commit()

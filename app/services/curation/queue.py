@@ -470,13 +470,21 @@ def queue_ids(session: Session, filters: SystemFilters = SystemFilters(), sort: 
 
 
 def _status_counts(session: Session, conds: list[Any]) -> dict[str, int]:
-    """Systems per review status under ``conds``: one GROUP BY on the stored status, counted in an index that starts
-    with it (without conditions: every status named, so that both engines count in that index instead of scanning
-    the table; SQLite reads the index alone, its entries a few bytes each)."""
+    """Systems per review status under ``conds``: one GROUP BY on the stored status (its index); without
+    conditions, the reviewed systems by status (index lookups: as many as have been reviewed) and the
+    pending ones as the rest of the table's row count (a count SQLite reads from the table's b-tree
+    without visiting its rows), so the unfiltered queue's progress costs what the review has done, not
+    the size of the database."""
     status = _review_status()
     counts = {s.value: 0 for s in ReviewStatus}
-    where = conds or [status.in_([s.value for s in ReviewStatus])]
-    for s, n in session.execute(sa.select(status, sa.func.count()).where(*where).group_by(status)):
+    if conds:
+        rows: list[Any] = list(session.execute(sa.select(status, sa.func.count()).where(*conds).group_by(status)))
+    else:
+        reviewed = [s.value for s in ReviewStatus if s is not ReviewStatus.PENDING]
+        rows = list(session.execute(sa.select(status, sa.func.count()).where(status.in_(reviewed)).group_by(status)))
+        everything = session.scalar(sa.select(sa.func.count()).select_from(System)) or 0
+        rows.append((ReviewStatus.PENDING.value, everything - sum(int(n) for _, n in rows)))
+    for s, n in rows:
         counts[ReviewStatus(s).value] += int(n)
     return counts
 
