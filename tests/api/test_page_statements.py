@@ -1,7 +1,8 @@
 """A system page and a queue page read in proportion to what they answer, not to the database: on a database of a few
 thousand systems (the demo copied over, ``benchmarks/page_statements.py``) no statement of theirs scans a table that
 grows with the dataset (SQLite's ``EXPLAIN QUERY PLAN`` ``SCAN``, PostgreSQL's ``Seq Scan`` after the statistics an
-import leaves), and each request sends as many statements as on the demo. SQLite always; PostgreSQL in its pass."""
+import leaves; the one count of every system excepted by name, ``page_statements.WHOLE_COUNTS``), and each request
+sends as many statements as on the demo. SQLite always; PostgreSQL in its pass."""
 from __future__ import annotations
 
 from collections.abc import Iterator
