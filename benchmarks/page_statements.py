@@ -1,7 +1,7 @@
 """What a system page and a queue page read, at the demo's size and at many systems: each statement the request
 sends (SQLAlchemy's ``before_cursor_execute``), its plan (SQLite's ``EXPLAIN QUERY PLAN``, PostgreSQL's ``EXPLAIN``),
 the growing tables it scans, and the work it does (SQLite: virtual machine instructions; PostgreSQL: rows its plan
-nodes read, ``EXPLAIN ANALYZE``). ``tests/api/test_page_statements.py`` fails when a statement scans a growing table
+nodes return, ``EXPLAIN ANALYZE``). ``tests/api/test_page_statements.py`` fails when a statement scans a growing table
 or when the number of statements differs from the demo's.
 
 The database of many systems is built in seconds: the demo's rows copied ``copies`` times over in SQL
@@ -131,7 +131,7 @@ class Statement:
     sql: str
     params: Any
     plan: list[str] = field(default_factory=list)
-    #: What running it took: SQLite's VM instructions or PostgreSQL's rows read (:func:`sqlite_steps`,
+    #: What running it took: SQLite's VM instructions or PostgreSQL's rows its plan nodes return (:func:`sqlite_steps`,
     #: :func:`postgresql_rows`); None until measured.
     work: int | None = None
 
@@ -221,7 +221,7 @@ def sqlite_steps(url: str, statements: list[Statement]) -> list[int]:
 
 
 def postgresql_rows(engine: sa.Engine, statements: list[Statement]) -> list[int]:
-    """PostgreSQL: the rows each statement's plan nodes read, summed (``EXPLAIN (ANALYZE, FORMAT JSON)``'s actual
+    """PostgreSQL: the rows each statement's plan nodes return, summed (``EXPLAIN (ANALYZE, FORMAT JSON)``'s actual
     rows times loops of every node), in a transaction rolled back."""
     def rows(node: dict[str, Any]) -> int:
         own = int(node.get("Actual Rows", 0) * node.get("Actual Loops", 1))
@@ -337,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
         system = 5  # a system of the demo; its last copy in the database of many
         figures = {name: _measure(url, system if name == "demo" else system + 9 * args.copies, folder)
                    for name, url in urls.items()}
-    unit = "VM steps" if not args.database_url else "rows read"
+    unit = "VM steps" if not args.database_url else "rows returned by plan nodes"
     for request in REQUESTS:
         demo_s, many_s = figures["demo"][request], figures["many"][request]
         print(f"\n{request}: {len(demo_s)} statements at 9 systems, {len(many_s)} at {9 * (args.copies + 1)}")
