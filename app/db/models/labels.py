@@ -63,6 +63,16 @@ class Game(Base):
         return f"{self.league}/{self.season}/{self.match}"
 
 
+#: The review statuses that are work still to do: nobody decided yet, or the annotator a needs-fix went to says it is
+#: fixed. The review queue's default order puts them first (``app.services.curation.queue``).
+TO_REVIEW: tuple[ReviewStatus, ...] = (ReviewStatus.PENDING, ReviewStatus.FIXED)
+#: SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one, the statuses written as literals: the first key
+#: of the queue's default order, and of its index, which a query uses only when it writes the same expression
+#: (a bound parameter in its place would not match the index's literal on either engine). Written line by line as
+#: PostgreSQL prints it back, so that ``alembic check`` finds the index it reflects equal to this one.
+REVIEW_ORDER_SQL = "\n".join(["CASE review_status", *(f"WHEN '{s.value}' THEN 0" for s in TO_REVIEW), "ELSE 1", "END"])
+
+
 class System(Base):
     """A multi-view system: an action frame and its linked replays, or one single-view frame."""
 
@@ -74,8 +84,9 @@ class System(Base):
         sa.Index("ix_systems_review_status_label_doubts_worst_error_px", "review_status", "label_doubts",
                  "worst_error_px"),
         sa.Index("ix_systems_review_status_worst_error_px", "review_status", "worst_error_px"),
-        sa.Index("ix_systems_review_status_label_severity_worst_error_px", "review_status", "label_severity",
-                 "worst_error_px"),
+        # the default order within a review status, the id included: the pending queue's page is a seek
+        sa.Index("ix_systems_review_status_severity_error_doubts_id", "review_status", "label_severity",
+                 "worst_error_px", "label_doubts", "id"),
         sa.Index("ix_systems_review_status_lowest_jac", "review_status", "lowest_jac"),
         # the queue's ``ball_evidence=`` filter and sort within a review status (the pending vouched systems a batch
         # of accepted-after-a-sample draws from) as an index seek
@@ -83,6 +94,10 @@ class System(Base):
         # keyset pages of the queue (app.services.curation.queue._slices, migration 0013): the numeric name
         # order within a game as an index walk
         sa.Index("ix_systems_game_id_name_length_name", "game_id", sa.text("length(name)"), "name"),
+        # the queue's default order (work to do first, then severity, error, doubts; the id last for PostgreSQL,
+        # whose indexes do not end with it as SQLite's do): a page and a system's neighbours are seeks in it
+        sa.Index("ix_systems_review_order_severity", sa.text(f"(\n{REVIEW_ORDER_SQL})"), "label_severity",
+                 "worst_error_px", "label_doubts", "id"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)

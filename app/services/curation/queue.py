@@ -31,7 +31,10 @@ equal to the cursor on every key but the last and beyond it on the last, then th
 but the last two, ... (the seek of :func:`queue_neighbours`, with a ``LIMIT`` of a page), and, from the
 start of the queue, a key whose NULLs come last as its values, then its NULLs. No slice needs ``NULLS
 LAST`` on a column that holds NULLs, so no page sorts the queue; a deep ``offset`` skips ids along the
-sort's index (covering: the sort keys and the row id) and reads the rows of the page only.
+sort's index (covering: the sort keys and the row id) and reads the rows of the page only. The ``severity`` order's
+first key (work to do or decided) takes two values: its slices are one per value (an equality, never a range), so that
+the keys after it are read in the order of its index (``ix_systems_review_order_severity``) whatever their direction,
+and no ORDER BY names a key its slice holds equal (SQLite would sort instead of reading the index).
 """
 from __future__ import annotations
 
@@ -60,6 +63,7 @@ from app.db.models import (
     Triangulation,
     User,
 )
+from app.db.models.labels import TO_REVIEW
 from app.db.types import DB_INT_MAX, DB_INT_MIN
 from app.services.accounts.users import ASSIGNEE_NONE
 
@@ -68,14 +72,14 @@ SystemSort = Literal["severity", "-severity", "doubts", "-doubts", "worst_error"
 FrameSort = Literal["error", "-error", "jac", "-jac", "name", "-name"]
 #: The review queue's default order: pending (and fixed, to re-review) systems first, the most severe first.
 DEFAULT_SORT: SystemSort = "-severity"
-#: The statuses that are work still to do (the ``severity`` order puts them first): nobody decided yet, or the
-#: annotator a needs-fix went to says it is fixed.
-TO_REVIEW: tuple[ReviewStatus, ...] = (ReviewStatus.PENDING, ReviewStatus.FIXED)
 
 
 def _to_review_first() -> Any:
-    """SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one (the ``severity`` order's first key)."""
-    return sa.type_coerce(sa.case((System.review_status.in_(TO_REVIEW), 0), else_=1), sa.Integer)
+    """SQL: 0 for a system of :data:`TO_REVIEW`, 1 for a decided one (the ``severity`` order's first key), written as
+    the index ``ix_systems_review_order_severity`` writes it (``REVIEW_ORDER_SQL``: literals, no bound parameter),
+    so that both engines read the order from that index."""
+    whens: list[tuple[Any, Any]] = [(sa.literal_column(f"'{s.value}'"), sa.literal_column("0")) for s in TO_REVIEW]
+    return sa.type_coerce(sa.case(*whens, value=System.review_status, else_=sa.literal_column("1")), sa.Integer)
 
 
 @dataclass(frozen=True)
@@ -215,6 +219,10 @@ class _SortKey:
     expr: Any
     desc: bool = False
     nulls_last: bool = False
+    #: Every value the key takes, ascending, when they are few and never NULL (the work-to-do-first key: 0, 1):
+    #: its rows beyond a value are read as one slice per value (an equality, so that the keys after it are read in
+    #: their index's order whatever their direction), not as a range.
+    values: tuple[Any, ...] = ()
 
     def clause(self, reverse: bool = False, plain: bool = False) -> Any:
         """The ORDER BY term; ``plain``: without the NULLs placement (for rows where the key is known
@@ -232,6 +240,12 @@ class _SortKey:
         """SQL: a row's key sorts strictly before (``side="before"``) or after ``value`` (the current
         row's), as conditions each of which an index answers with a range seek, nearest first: after a
         value of a key whose NULLs come last come the values beyond it, then the NULLs."""
+        if self.values:
+            ahead = self.desc == (side == "before")  # the values beyond are the greater ones
+            ordered = self.values if ahead else self.values[::-1]
+            if isinstance(value, sa.ColumnElement):  # a parameter of a statement built once: each slice guarded
+                return [sa.and_(self.expr == v, value < v if ahead else value > v) for v in ordered]
+            return [self.expr == v for v in ordered if (v > value if ahead else v < value)]
         if self.nulls_last and value is None:
             return [self.expr.is_not(None)] if side == "before" else []
         beyond = self.expr > value if self.desc == (side == "before") else self.expr < value
@@ -248,7 +262,7 @@ def _sort_keys(sort: SystemSort) -> list[_SortKey]:
         cols = [Game.league, Game.season, Game.match, *_natural_name(System.name)]
         return [_SortKey(c, desc) for c in cols] + [tie]
     if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
-        return [_SortKey(_to_review_first()), _SortKey(System.label_severity, desc),
+        return [_SortKey(_to_review_first(), values=(0, 1)), _SortKey(System.label_severity, desc),
                 _SortKey(System.worst_error_px, desc, True), _SortKey(System.label_doubts, desc), tie]
     if key == "ball_evidence":  # the enum's order, the best backed first (vouched ... none); ties by the error
         rank = sa.type_coerce(sa.case({t.value: i for i, t in enumerate(BallEvidence)}, value=System.ball_evidence,
@@ -326,6 +340,15 @@ def _fits(key: _SortKey, value: Any) -> bool:
     return isinstance(value, str) and "\x00" not in value
 
 
+def _slice_order(keys: list[_SortKey], i: int, reverse: bool) -> list[Any]:
+    """The ORDER BY of a slice whose rows are equal on ``keys[:i]`` and beyond the current row on ``keys[i]``: from
+    ``keys[i]`` on (the equal ones would change nothing, and SQLite then sorts instead of reading an index whose
+    leading expression they are), ``keys[i]`` without its NULLs placement (the slice fixes its NULL-ness), and
+    without ``keys[i]`` itself when the slice holds one value of it (a key of ``values``)."""
+    head = [] if keys[i].values else [keys[i].clause(reverse, plain=True)]
+    return head + [k.clause(reverse) for k in keys[i + 1:]]
+
+
 def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
             side: Literal["before", "after"]) -> list[tuple[list[Any], list[Any]]]:
     """The rows strictly ``side`` of the row whose sort keys are ``current`` (None: from the start of
@@ -340,6 +363,10 @@ def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
     reverse = side == "before"
     if current is None:
         first = keys[0]
+        if first.values:  # one slice per value, in the order's direction
+            order = _slice_order(keys, 0, reverse)
+            values = first.values[::-1] if first.desc != reverse else first.values
+            return [([first.expr == v], order) for v in values]
         if not first.nulls_last:
             return [([], [k.clause(reverse) for k in keys])]
         order = [first.clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[1:]]
@@ -347,7 +374,7 @@ def _slices(keys: list[_SortKey], current: Optional[tuple[Any, ...]],
         return [(p, order) for p in (reversed(parts) if reverse else parts)]
     out = []
     for i in reversed(range(len(keys))):
-        order = [keys[i].clause(reverse, plain=True)] + [k.clause(reverse) for k in keys[i + 1:]]
+        order = _slice_order(keys, i, reverse)
         for beyond in keys[i].beyond(current[i], side):
             out.append(([*(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond], order))
     return out
@@ -543,10 +570,9 @@ def _neighbour(base: sa.Select[Any], conds: list[Any], keys: list[_SortKey], cur
     at 12,800 systems.)
     """
     reverse = side == "before"
-    order = [k.clause(reverse=reverse) for k in keys]
     nearest_first = [
         base.where(*conds, *(k.equal(v) for k, v in zip(keys[:i], current, strict=False)), beyond)
-        .order_by(*order).limit(1).scalar_subquery()
+        .order_by(*_slice_order(keys, i, reverse)).limit(1).scalar_subquery()
         for i in reversed(range(len(keys))) for beyond in keys[i].beyond(current[i], side)
     ]
     return sa.func.coalesce(*nearest_first) if len(nearest_first) > 1 else nearest_first[0]
