@@ -6,7 +6,7 @@ of that order within a review status gains the count of label doubts and the id,
 read in its order too instead of sorting every pending system.
 
 Revision ID: 0042
-Revises: 0039
+Revises: 0041
 Create Date: 2026-12-04 00:00:00+00:00
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = '0042'
-down_revision: str | None = '0039'
+down_revision: str | None = '0041'
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
