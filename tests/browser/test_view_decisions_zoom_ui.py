@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid
+from tests.browser.support import api_write, settled, tid
 
 pytestmark = pytest.mark.browser
 
@@ -127,6 +127,7 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
 
     for _ in range(4):  # x1.5 four times: x5.0625
         page.keyboard.press(">")
+    settled(page)  # keys typed while the page still works are applied once it can act
     z = 1.5 ** 4
     assert page.locator(tid("zoom-level")).inner_text() == "×5.06"
     for w, v in zip(_windows(page), views, strict=False):
@@ -168,6 +169,7 @@ def test_synchronised_zoom_and_pan_kept_across_systems(page, artifacts):
         assert w[2] == pytest.approx(v["width"] / 1.5 ** 5, abs=0.01)
     _shot(page, artifacts, "zoom-next-system.png")
     page.keyboard.press("0")
+    settled(page)
     assert all(w == [0, 0, v["width"], v["height"]] for w, v in zip(_windows(page), nxt["views"], strict=False))
     assert page.evaluate("() => JSON.parse(sessionStorage.getItem('v3d.zoom'))") == {"z": 1, "pan": [0, 0]}
 

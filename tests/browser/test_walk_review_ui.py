@@ -10,7 +10,7 @@ import pytest
 from app.geometry.doubts import LABEL_KIND_SEVERITY
 from tests.accounts import PASSWORD, Account
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, log_in, tid, wait_for_steady_layout, wait_until
+from tests.browser.support import api_write, log_in, settled, tid, wait_for_steady_layout, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -83,6 +83,7 @@ def test_a_views_number_key_brings_the_selected_view_into_sight(page, artifacts,
         # selects and reveals the card as it is handled
         page.evaluate("(where) => window.scrollTo(0, where === 'top' ? 0 : document.body.scrollHeight)", back_to)
         page.keyboard.press(str(key))
+        settled(page)  # a key typed while the page still works is applied once it can act
         card = views.nth(key - 1)
         assert card.evaluate("(e) => e.classList.contains('selected')"), key
         wait_for_steady_layout(page, tid("view"))  # whatever else moves the cards (an image drawn) has moved them
