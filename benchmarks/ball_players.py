@@ -23,11 +23,11 @@ from typing import Any
 sys.path.insert(0, ".")
 import sqlalchemy as sa  # noqa: E402  # after the checkout is on the path
 
-from app.core.config import Settings  # noqa: E402
-from app.db.models import System  # noqa: E402
-from app.db.session import make_engine, make_session_factory  # noqa: E402
-from app.geometry.triangulation import PairGeometryMemo  # noqa: E402
-from app.services.derivation import ball, recompute  # noqa: E402
+from app.core.config import Settings  # noqa: E402  # after the checkout is on the path
+from app.db.models import System  # noqa: E402  # after the checkout is on the path
+from app.db.session import make_engine, make_session_factory  # noqa: E402  # after the checkout is on the path
+from app.geometry.triangulation import PairGeometryMemo  # noqa: E402  # after the checkout is on the path
+from app.services.derivation import ball, recompute  # noqa: E402  # after the checkout is on the path
 
 
 class Inside:
@@ -63,7 +63,7 @@ def players(on: bool, inside: Inside) -> Iterator[None]:
     try:
         yield
     finally:
-        ball.players_disagree = real  # type: ignore[assignment]
+        ball.players_disagree = real  # type: ignore[assignment]  # the switch undone
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from app.db.models import Base  # noqa: E402  # after the checkout is on the path
-from app.db.session import make_session_factory, refresh_statistics  # noqa: E402
+from app.db.session import make_session_factory, refresh_statistics  # noqa: E402  # after the checkout is on the path
 
 #: The tables that grow with the dataset: one row or more per game, system or frame. What a request for one system
 #: or one page of the queue must never scan. Ordered so that a table comes after those its keys refer to.
