@@ -126,27 +126,88 @@ def create_test_database(conn: sa.Connection, name: str, template: str | None = 
 
 
 @contextmanager
-def fresh_postgresql_database(server_url: str) -> Iterator[str]:
-    """A new, empty database ``v3d_test_<hex>`` on the PostgreSQL server of ``server_url``, dropped
-    (connections closed) afterwards; yields its URL, so that concurrent runs never collide. Skips
-    with the reason when the server cannot be reached."""
+def fresh_postgresql_database(server_url: str, *, migrated: bool = False) -> Iterator[str]:
+    """A new database ``v3d_test_<hex>`` on the PostgreSQL server of ``server_url``, dropped (connections closed)
+    afterwards; yields its URL, so that concurrent runs never collide. Empty, or, when ``migrated``, at the
+    migrations' head: a copy (``CREATE DATABASE ... TEMPLATE``) of a database migrated once per test process and
+    server (:func:`_postgresql_template`), its session key drawn anew as for SQLite's copies. Skips with the reason
+    when the server cannot be reached."""
     import uuid
 
     server = sa.make_url(server_url)
     admin = sa.create_engine(server, isolation_level="AUTOCOMMIT")
     name = f"v3d_test_{uuid.uuid4().hex[:12]}"
     try:
+        template = _postgresql_template(server) if migrated else None
         with admin.connect() as conn:
-            create_test_database(conn, name)
+            create_test_database(conn, name, template)
     except sa.exc.OperationalError as exc:
         admin.dispose()
         pytest.skip(f"PostgreSQL not reachable at {server.render_as_string()}: {exc.orig}")
+    url = server.set(database=name).render_as_string(hide_password=False)
     try:
-        yield server.set(database=name).render_as_string(hide_password=False)
+        if migrated:
+            _draw_session_key(url)
+        yield url
     finally:
         with admin.connect() as conn:
             conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
         admin.dispose()
+
+
+#: The migrated PostgreSQL database of each server this test process copies its migrated databases from.
+_POSTGRESQL_TEMPLATES: dict[str, str] = {}
+
+
+def _postgresql_template(server: sa.URL) -> str:
+    """The name of a database on ``server`` migrated to head once per test process (replaying the migrations costs
+    a few seconds of the server's time per database, and CI's PostgreSQL pass makes dozens), dropped when the process
+    ends. Nothing connects to it after its migration, as ``CREATE DATABASE ... TEMPLATE`` requires."""
+    import atexit
+    import uuid
+
+    key = server.render_as_string(hide_password=False)
+    if key not in _POSTGRESQL_TEMPLATES:
+        admin = sa.create_engine(server, isolation_level="AUTOCOMMIT")
+        name = f"v3d_template_{uuid.uuid4().hex[:12]}"
+        try:
+            with admin.connect() as conn:
+                create_test_database(conn, name)
+            upgrade_database(server.set(database=name))
+        except BaseException:
+            with admin.connect() as conn:
+                conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+            raise
+        finally:
+            admin.dispose()
+
+        def drop() -> None:
+            engine = sa.create_engine(server, isolation_level="AUTOCOMMIT")
+            try:
+                with engine.connect() as conn:
+                    conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+            except sa.exc.OperationalError:  # the server went first: nothing is left to drop
+                pass
+            finally:
+                engine.dispose()
+
+        atexit.register(drop)
+        _POSTGRESQL_TEMPLATES[key] = name
+    return _POSTGRESQL_TEMPLATES[key]
+
+
+def _draw_session_key(url: str) -> None:
+    """A new session key in the copied database ``url``, drawn as the migration that made the key draws one, so that
+    no two of the suite's databases share it."""
+    import secrets
+
+    engine = sa.create_engine(url)
+    try:
+        with engine.begin() as conn:
+            conn.execute(sa.text("UPDATE server_secrets SET value = :value WHERE name = 'session'"),
+                         {"value": secrets.token_urlsafe(48)})
+    finally:
+        engine.dispose()
 
 
 #: A SQLite file migrated to head once per test process (:func:`migrate_new_database`), in a folder of its own.
@@ -178,18 +239,16 @@ def migrate_new_database(url: str) -> None:
 def copy_sqlite(source: Path, target: Path) -> str:
     """A copy at ``target`` of the SQLite database ``source`` (its write-ahead log included: SQLite's backup API),
     with a session key of its own, drawn as the migration that made the key draws one; answers its URL."""
-    import secrets
     import sqlite3
 
     target.parent.mkdir(parents=True, exist_ok=True)
     original, copy = sqlite3.connect(source), sqlite3.connect(target)
     try:
         original.backup(copy)
-        copy.execute("UPDATE server_secrets SET value = ? WHERE name = 'session'", (secrets.token_urlsafe(48),))
-        copy.commit()
     finally:
         original.close()
         copy.close()
+    _draw_session_key(f"sqlite:///{target}")
     return f"sqlite:///{target}"
 
 
@@ -213,8 +272,7 @@ def db_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     when ``V3D_TEST_DATABASE_URL`` names a PostgreSQL server, a fresh database on it (dropped at the end)."""
     server = os.environ.get(TEST_DATABASE_ENV)
     if server:
-        with fresh_postgresql_database(server) as url:
-            upgrade_database(url)
+        with fresh_postgresql_database(server, migrated=True) as url:
             yield url
         return
     url = f"sqlite:///{tmp_path_factory.mktemp('db') / 'v3d-test.sqlite3'}"
@@ -288,4 +346,12 @@ def pg_url() -> Iterator[str]:
     """URL of a fresh, empty PostgreSQL database made for this test and dropped after it, so that
     concurrent runs never collide. Skips with the reason when the server is down."""
     with fresh_postgresql_database(PG_ADMIN_URL) as url:
+        yield url
+
+
+@pytest.fixture
+def pg_migrated_url() -> Iterator[str]:
+    """As :func:`pg_url`, the database at the migrations' head (a copy of the test process's migrated template):
+    for the tests whose subject is not the migrations."""
+    with fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as url:
         yield url

@@ -13,7 +13,7 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
 from app.core.config import Settings
-from app.db.session import make_engine, upgrade_database
+from app.db.session import make_engine
 from app.main import create_app
 from benchmarks import page_statements as ps
 from tests.accounts import as_session, make_accounts
@@ -55,10 +55,10 @@ def databases(request: pytest.FixtureRequest, demo_template: Path, tmp_path: Pat
             _fill(url, url, COPIES if name == "many" else 0)
         yield urls
         return
-    with fresh_postgresql_database(PG_ADMIN_URL) as demo, fresh_postgresql_database(PG_ADMIN_URL) as many:
+    with fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as demo, \
+            fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as many:
         urls = {"demo": demo, "many": many}
         for name, url in urls.items():
-            upgrade_database(url)
             _fill(f"sqlite:///{demo_template}", url, COPIES if name == "many" else 0)
         yield urls
 

@@ -16,10 +16,10 @@ from tests.accounts import as_token, make_accounts
 from .factories import make_game, make_system
 
 
-def _seed(pg_url: str, settings: Settings, build):
-    """Migrate the PostgreSQL database, run ``build(session, game)`` in one committed session, return its result."""
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
+def _seed(url: str, settings: Settings, build):
+    """Run ``build(session, game)`` in one committed session of the migrated PostgreSQL database ``url``, return its
+    result."""
+    engine = make_engine(url)
     try:
         with make_session_factory(engine)() as session:
             out = build(session, make_game(session))
@@ -31,8 +31,8 @@ def _seed(pg_url: str, settings: Settings, build):
 pytestmark = pytest.mark.postgres
 
 
-def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
-    settings = Settings(database_url=pg_url, calibration_workers=1)
+def test_queue_and_system_view_on_postgresql(pg_migrated_url: str) -> None:
+    settings = Settings(database_url=pg_migrated_url, calibration_workers=1)
 
     def build(session, game):
         exact = make_system(session, settings, game, "2.png", jac=0.90).system_id
@@ -43,8 +43,8 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         update_summary(system, system.triangulation)  # stored with the flag, as the recomputation does
         return exact, shifted, lonely
 
-    exact, shifted, lonely = _seed(pg_url, settings, build)
-    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    exact, shifted, lonely = _seed(pg_migrated_url, settings, build)
+    admin = make_accounts(pg_migrated_url, login=False, roles=("admin",))["admin"]
     with as_token(TestClient(create_app(settings)), admin) as client:
         def ids(**p):
             return [s["id"] for s in client.get("/api/systems", params=p).json()["items"]]
@@ -68,11 +68,11 @@ def test_queue_and_system_view_on_postgresql(pg_url: str) -> None:
         assert len(view["views"]) == 3 and client.get(view["views"][0]["pitch_lines_url"]).json()["lines"]
 
 
-def test_views_above_tau_on_postgresql(pg_url: str) -> None:
+def test_views_above_tau_on_postgresql(pg_migrated_url: str) -> None:
     """The queue's ``views_above_tau`` (float reference width, integer width, stored tau) on PostgreSQL,
     and the system view's ``error_above_tau`` by the same rule (the scene of test_systems' count, by class: ball_rule
     "weights", under which the 40 px box's pairs meet as that test says)."""
-    settings = Settings(database_url=pg_url, calibration_workers=1, ball_rule="weights")
+    settings = Settings(database_url=pg_migrated_url, calibration_workers=1, ball_rule="weights")
 
     def build(session, game):
         exact = make_system(session, settings, game, "2.png").system_id
@@ -80,8 +80,8 @@ def test_views_above_tau_on_postgresql(pg_url: str) -> None:
         wrong = make_system(session, settings, game, "4.png", shift_px=(0.0, 0.0, 40.0)).system_id
         return exact, wrong
 
-    exact, wrong = _seed(pg_url, settings, build)
-    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    exact, wrong = _seed(pg_migrated_url, settings, build)
+    admin = make_accounts(pg_migrated_url, login=False, roles=("admin",))["admin"]
     with as_token(TestClient(create_app(settings)), admin) as client:
         rows = {s["id"]: s["views_above_tau"] for s in client.get("/api/systems").json()["items"]}
         assert rows == {exact: 0, wrong: 2}
@@ -89,7 +89,7 @@ def test_views_above_tau_on_postgresql(pg_url: str) -> None:
         assert [v["error_above_tau"] for v in view["views"]] == [True, False, True]
 
 
-def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:
+def test_soccernet_v3d_export_on_postgresql(pg_migrated_url: str, tmp_path) -> None:
     """The export reads JSON columns as their text (``jsonb::text`` on PostgreSQL): every cell and
     document value equals the stored one, SQL NULL and JSON null both empty."""
     import csv
@@ -98,9 +98,10 @@ def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:
     from app.db.models import Frame
     from app.services.transfer.exporting import export_soccernet_v3d
 
-    settings = Settings(database_url=pg_url, calibration_workers=1)
-    sid = _seed(pg_url, settings, lambda session, game: make_system(session, settings, game, "2.png").system_id)
-    engine = make_engine(pg_url)
+    settings = Settings(database_url=pg_migrated_url, calibration_workers=1)
+    sid = _seed(pg_migrated_url, settings,
+                lambda session, game: make_system(session, settings, game, "2.png").system_id)
+    engine = make_engine(pg_migrated_url)
     try:
         with make_session_factory(engine)() as session:
             report = export_soccernet_v3d(session, tmp_path, include_all=True)
@@ -121,12 +122,13 @@ def test_soccernet_v3d_export_on_postgresql(pg_url: str, tmp_path) -> None:
         engine.dispose()
 
 
-def test_ids_beyond_32_bits_and_nul_characters_are_422_on_postgresql(pg_url: str) -> None:
+def test_ids_beyond_32_bits_and_nul_characters_are_422_on_postgresql(pg_migrated_url: str) -> None:
     """Found by benchmarks/fuzz.py --database-url (PostgreSQL): an id beyond the 32-bit INTEGER columns
     ("integer out of range") and a NUL character in text (which PostgreSQL cannot store) were 500s."""
-    settings = Settings(database_url=pg_url, calibration_workers=1)
-    system_id = _seed(pg_url, settings, lambda session, game: make_system(session, settings, game, "2.png").system_id)
-    admin = make_accounts(pg_url, login=False, roles=("admin",))["admin"]
+    settings = Settings(database_url=pg_migrated_url, calibration_workers=1)
+    system_id = _seed(pg_migrated_url, settings,
+                      lambda session, game: make_system(session, settings, game, "2.png").system_id)
+    admin = make_accounts(pg_migrated_url, login=False, roles=("admin",))["admin"]
     with as_token(TestClient(create_app(settings)), admin) as client:
         for url, loc in [("/api/systems/2147483648", ["path", "system_id"]),
                          ("/api/frames/99999999999/image", ["path", "frame_id"]),
@@ -179,7 +181,7 @@ def test_connections_run_without_jit_and_migrations_analyse(pg_url: str) -> None
         in_url.dispose()
 
 
-def test_statements_stay_prepared_across_requests_that_end_their_reads_by_a_commit(pg_url: str) -> None:
+def test_statements_stay_prepared_across_requests_that_end_their_reads_by_a_commit(pg_migrated_url: str) -> None:
     """psycopg prepares a statement run 5 times on a connection and forgets them all on a rollback, so a request's
     session ends its read-only transaction by a commit (``app.api.deps.get_session``, ``app.db.session.end_reads``):
     the statements stay prepared from one request to the next; a rollback still discards what a transaction wrote,
@@ -189,8 +191,7 @@ def test_statements_stay_prepared_across_requests_that_end_their_reads_by_a_comm
     from app.db.models import Game
     from app.db.session import end_reads
 
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url, pool_size=1, max_overflow=0)  # one connection: every session below shares it
+    engine = make_engine(pg_migrated_url, pool_size=1, max_overflow=0)  # one connection: every session below shares it
     factory = make_session_factory(engine)
     lookup = sa.select(Game.id).where(Game.match == sa.bindparam("m"))
     try:
@@ -215,16 +216,14 @@ def test_statements_stay_prepared_across_requests_that_end_their_reads_by_a_comm
         engine.dispose()
 
 
-def test_a_rollback_on_a_connection_the_server_closed_discards_the_connection(pg_url: str) -> None:
+def test_a_rollback_on_a_connection_the_server_closed_discards_the_connection(pg_migrated_url: str) -> None:
     """A rollback on a connection the server has closed (a restart, an administrator's ``pg_terminate_backend``)
     raises, so the pool discards that connection, and the next session works on a new one."""
     import time
 
     import sqlalchemy as sa
-
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url, pool_size=1, max_overflow=0)
-    admin = make_engine(pg_url, isolation_level="AUTOCOMMIT")
+    engine = make_engine(pg_migrated_url, pool_size=1, max_overflow=0)
+    admin = make_engine(pg_migrated_url, isolation_level="AUTOCOMMIT")
     factory = make_session_factory(engine)
     try:
         s = factory()

@@ -1,12 +1,16 @@
 """The suite's new SQLite databases are copies of one migrated once per test process
-(``tests.conftest.migrate_new_database``): each must be what the migrations make, its session key its own."""
+(``tests.conftest.migrate_new_database``), and its migrated PostgreSQL databases copies of a template database
+(``tests.conftest.fresh_postgresql_database``): each must be what the migrations make, its session key its own."""
 from __future__ import annotations
 
 import sqlite3
 from pathlib import Path
 
-from app.db.session import upgrade_database
-from tests.conftest import migrate_new_database
+import pytest
+import sqlalchemy as sa
+
+from app.db.session import alembic_config, upgrade_database
+from tests.conftest import PG_ADMIN_URL, fresh_postgresql_database, migrate_new_database
 
 
 def _facts(path: Path) -> tuple[dict[str, list[str]], str, str]:
@@ -47,3 +51,28 @@ def test_an_existing_database_is_migrated_not_replaced(tmp_path: Path) -> None:
     migrate_new_database(url)
     with sqlite3.connect(tmp_path / "kept.sqlite3") as db:
         assert db.execute("SELECT match FROM games").fetchall() == [("kept",)]
+
+
+@pytest.mark.postgres
+def test_a_copied_postgresql_database_is_what_the_migrations_make_with_a_session_key_of_its_own() -> None:
+    """``fresh_postgresql_database(migrated=True)`` copies a database migrated once per test process: each copy
+    matches the models as a migrated database does (Alembic's ``check``), is at the head, and draws its own key."""
+    from alembic import command
+    from alembic.script import ScriptDirectory
+
+    def facts(url: str) -> tuple[str, str]:
+        engine = sa.create_engine(url)
+        try:
+            with engine.connect() as conn:
+                return (conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar_one(),
+                        conn.execute(sa.text("SELECT value FROM server_secrets WHERE name = 'session'")).scalar_one())
+        finally:
+            engine.dispose()
+
+    with fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as a, \
+            fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as b:
+        command.check(alembic_config(a))  # raises when the copy's schema differs from the models
+        (rev_a, key_a), (rev_b, key_b) = facts(a), facts(b)
+        head = ScriptDirectory.from_config(alembic_config(a)).get_current_head()
+        assert rev_a == rev_b == head
+        assert key_a != key_b

@@ -6,7 +6,7 @@ import pytest
 import sqlalchemy as sa
 
 from app.db.models import Frame, System
-from app.db.session import make_engine, make_session_factory, upgrade_database
+from app.db.session import make_engine, make_session_factory
 from app.services.curation.decisions import decide_review
 from app.services.curation.editing import update_ball_label
 from app.services.transfer.exporting import export_soccernet_v3d
@@ -16,10 +16,9 @@ from .transfer.test_exporting import _snapshot
 
 
 @pytest.mark.postgres
-def test_import_recompute_edit_export_round_trip_on_postgres(pg_url, settings, v3_tree, tmp_path,
+def test_import_recompute_edit_export_round_trip_on_postgres(pg_migrated_url, settings, v3_tree, tmp_path,
                                                              fresh_session_factory):
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
+    engine = make_engine(pg_migrated_url)
     try:
         with make_session_factory(engine)() as pg:
             first = import_soccernet_v3(pg, v3_tree, settings)

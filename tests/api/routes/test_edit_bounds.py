@@ -73,7 +73,7 @@ def served(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Tes
     backend and a session of another engine (another process) to hold locks with."""
     with contextlib.ExitStack() as stack:
         url = (f"sqlite:///{tmp_path / 'served.sqlite3'}" if request.param == "sqlite"
-               else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL)))
+               else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL, migrated=True)))
         migrate_new_database(url)
         settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
                             write_lock_timeout_s=0.5, data_root=tmp_path)

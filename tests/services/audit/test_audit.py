@@ -154,15 +154,13 @@ def test_a_claim_reads_its_new_version_with_or_without_returning(db_session, set
 
 
 @pytest.mark.postgres
-def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings, v3_tree):
+def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_migrated_url, settings, v3_tree):
     """Writer A locks the system, bumps the frame's and the system's versions and holds its transaction open; writer
     B, with the same expected version, waits on the row lock, then finds the version moved: 412 for B, A's edit
     stored, one entry."""
-    from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
+    from app.db.session import begin_write, make_engine, make_session_factory
     from app.services.curation.writing import lock_system
-
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
+    engine = make_engine(pg_migrated_url)
     try:
         factory = make_session_factory(engine)
         with factory() as setup:
@@ -202,13 +200,11 @@ def test_two_writers_with_the_same_version_on_postgres_one_wins(pg_url, settings
 
 
 @pytest.mark.postgres
-def test_audit_entries_are_append_only_on_postgres_and_the_migration_goes_both_ways(pg_url):
+def test_audit_entries_are_append_only_on_postgres_and_the_migration_goes_both_ways(pg_migrated_url):
     from alembic import command
 
     from app.db.session import alembic_config, make_engine, upgrade_database
-
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
+    engine = make_engine(pg_migrated_url)
     try:
         with engine.begin() as conn:
             conn.execute(sa.text("INSERT INTO audit_entries (at, actor, action) VALUES (now(), 'ada', 'import')"))
@@ -220,6 +216,6 @@ def test_audit_entries_are_append_only_on_postgres_and_the_migration_goes_both_w
             assert conn.execute(sa.text("SELECT actor FROM audit_entries")).scalars().all() == ["ada"]
     finally:
         engine.dispose()
-    command.downgrade(alembic_config(pg_url), "-1")  # 0006 alone
-    upgrade_database(pg_url)
-    command.check(alembic_config(pg_url))
+    command.downgrade(alembic_config(pg_migrated_url), "-1")  # 0006 alone
+    upgrade_database(pg_migrated_url)
+    command.check(alembic_config(pg_migrated_url))

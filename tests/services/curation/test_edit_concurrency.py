@@ -35,7 +35,7 @@ def database(request: pytest.FixtureRequest,
     served process would, ``V3D_WRITE_LOCK_TIMEOUT_S``), the settings and the two scenes."""
     with contextlib.ExitStack() as stack:
         url = (f"sqlite:///{tmp_path / 'edits.sqlite3'}" if request.param == "sqlite"
-               else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL)))
+               else stack.enter_context(fresh_postgresql_database(PG_ADMIN_URL, migrated=True)))
         migrate_new_database(url)
         settings = Settings(_env_file=None, database_url=url, calibration_workers=1, job_runner=False,
                             write_lock_timeout_s=1.0)

@@ -11,18 +11,17 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
 from app.db.models import Game, System, SystemKind
-from app.db.session import begin_write, make_engine, make_session_factory, upgrade_database
+from app.db.session import begin_write, make_engine, make_session_factory
 from app.services.curation.writing import lock_system
 
 pytestmark = [pytest.mark.postgres, pytest.mark.engine]
 
 
 @pytest.fixture
-def systems(pg_url: str) -> Iterator[tuple[Callable[[], Session], dict[str, int]]]:
+def systems(pg_migrated_url: str) -> Iterator[tuple[Callable[[], Session], dict[str, int]]]:
     """A session factory on a migrated PostgreSQL database holding a SoccerNet game with two systems
     and an ISSIA game with two; yields it and the system ids by name."""
-    upgrade_database(pg_url)
-    engine = make_engine(pg_url)
+    engine = make_engine(pg_migrated_url)
     factory = make_session_factory(engine)
     with factory() as s:
         v3 = Game(league="l", season="s", match="broadcast", source_path="/v3")

@@ -22,7 +22,7 @@ def database(request, tmp_path: Path):
     if request.param == "sqlite":
         yield f"sqlite:///{tmp_path / 'nodes.sqlite3'}"
         return
-    with fresh_postgresql_database(PG_ADMIN_URL) as url:
+    with fresh_postgresql_database(PG_ADMIN_URL, migrated=True) as url:
         yield url
 
 
