@@ -81,7 +81,9 @@ def test_the_compiled_comparison_gives_the_numpy_functions_figures() -> None:
     rng = np.random.default_rng(29)
     seen = {"none": 0, "agree": 0, "disagree": 0}
     for p in pairs(rng):
-        ref, got = numpy_pair_disagreement(*p), pair_players_disagreement(*p)
+        with np.errstate(over="ignore", invalid="ignore"):  # numpy's undistortion of a pixel far off the lens
+            ref = numpy_pair_disagreement(*p)
+        got = pair_players_disagreement(*p)
         if ref is None:
             assert got is None
             seen["none"] += 1
