@@ -14,10 +14,13 @@ that difference is at least a tenth of a served ball edit's server CPU (``benchm
   changed; off: every derived value is set, every derived row written.
 * ``answer-from-edit``: the page an edit answers is drawn from the objects it committed
   (``system_page._loaded_system``); off: the page loads the system again.
+* ``lean-players``: the views' person boxes read as plain rows and each view's foot points made once per edit
+  (``loading.load_view_players``, ``calibration.players.frame_feet``); off: the boxes loaded as ORM objects
+  (``Frame.players``) and the foot points made on every ask.
 
 Usage (from the checkout)::
 
-    .venv/bin/python benchmarks/edit_mechanisms.py --blocks 8 --edits 10
+    .venv/bin/python benchmarks/edit_mechanisms.py --blocks 8 --edits 10 [--only lean-players ...]
 """
 from __future__ import annotations
 
@@ -30,15 +33,18 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 sys.path.insert(0, ".")
+import sqlalchemy as sa
 from sqlalchemy import select
+from sqlalchemy.orm.attributes import set_committed_value
 
 from app.core.config import Settings
-from app.db.models import Frame
+from app.db.models import Frame, PlayerBox
 from app.db.session import make_engine, make_session_factory
 from app.geometry.camera import Camera
 from app.geometry.triangulation import PairGeometryMemo
-from app.services.curation import editing, system_page
-from app.services.derivation import cameras, recompute, rows
+from app.services.calibration.players import feet_of, frame_players
+from app.services.curation import editing, system_page, writing
+from app.services.derivation import ball, cameras, doubts, loading, recompute, rows
 from benchmarks.load import fresh_database
 
 
@@ -101,15 +107,41 @@ def answer_from_edit_off() -> Iterator[None]:
         system_page._loaded_system = real  # type: ignore[assignment]  # the patch undone
 
 
+def _orm_view_players(session: Any, frames: Any) -> None:
+    """The person boxes as ORM objects handed to ``Frame.players`` (what ``load_view_players`` did before)."""
+    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
+    if not wanted:
+        return
+    found: dict[int, list[PlayerBox]] = {f.id: [] for f in wanted}
+    for p in session.scalars(select(PlayerBox).where(PlayerBox.frame_id.in_(found)).order_by(PlayerBox.id)):
+        found[p.frame_id].append(p)
+    for f in wanted:
+        if "players" in sa.inspect(f).unloaded:
+            set_committed_value(f, "players", found[f.id])
+
+
+@contextlib.contextmanager
+def lean_players_off() -> Iterator[None]:
+    """The boxes as ORM objects, the foot points made on every ask."""
+    saved = loading.load_view_players, writing.load_view_players, doubts.load_view_players, ball.frame_feet
+    loading.load_view_players = writing.load_view_players = doubts.load_view_players = _orm_view_players  # type: ignore[assignment]  # patched for the run
+    ball.frame_feet = lambda f: feet_of(frame_players(f), f.width, f.height)  # type: ignore[assignment]  # patched for the run
+    try:
+        yield
+    finally:
+        loading.load_view_players, writing.load_view_players, doubts.load_view_players, ball.frame_feet = saved  # type: ignore[assignment]  # the patch undone
+
+
 MECHANISMS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "cameras": cameras_off, "players": players_off, "only-changed": only_changed_off,
-    "answer-from-edit": answer_from_edit_off}
+    "answer-from-edit": answer_from_edit_off, "lean-players": lean_players_off}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--blocks", type=int, default=8, help="blocks per state and mechanism")
     ap.add_argument("--edits", type=int, default=10, help="edits per block")
+    ap.add_argument("--only", nargs="*", choices=list(MECHANISMS), help="these mechanisms only (default: every one)")
     args = ap.parse_args()
     with fresh_database(None) as url:
         settings = Settings(database_url=url)
@@ -133,6 +165,8 @@ def main() -> None:
                 system_page.system_page(s, sid)
 
         for current, switch in MECHANISMS.items():
+            if args.only and current not in args.only:
+                continue
             per: dict[bool, list[float]] = {False: [], True: []}
             for _ in range(2):
                 edit(False)  # warm

@@ -37,8 +37,9 @@ import cv2
 import numpy as np
 
 from app.geometry.annotations import FieldLines, image_diagonal, mirror_lines
-from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world, players_on_grass
+from app.geometry.calibration.grass import GrassPlayer, PlayerKey, foot_world, head_world
 from app.geometry.calibration.initialisation import camera_from_homography, wahba_rotations
+from app.geometry.calibration.pair_players import camera_arrays, pair_figures
 from app.geometry.calibration.player_problem import PlayerProblem, projection_sigma_px
 from app.geometry.calibration.residuals import CameraParametrisation
 from app.geometry.calibration.result import principal_point
@@ -419,13 +420,15 @@ def pair_players_disagreement(camera_a: Camera, feet_a: Mapping[PlayerKey, np.nd
     shared = [k for k in feet_a if k in feet_b]
     if len(shared) < min_players:
         return None
+    uv_a = np.array([np.asarray(feet_a[k], float) for k in shared]).reshape(-1, 2)
+    uv_b = np.array([np.asarray(feet_b[k], float) for k in shared]).reshape(-1, 2)
+    # Both directions in one compiled call (pair_players.py): numpy's per-call cost on a few players was the time.
+    figures = pair_figures(*camera_arrays(camera_a), float(size_a[0]), uv_a,
+                           *camera_arrays(camera_b), float(size_b[0]), uv_b, min_players)
     worst = None
-    for cam_x, feet_x, size_x, cam_y, feet_y in ((camera_a, feet_a, size_a, camera_b, feet_b),
-                                                 (camera_b, feet_b, size_b, camera_a, feet_a)):
-        grass = players_on_grass([(cam_y, {k: feet_y[k] for k in shared})])
-        got = players_disagreement(cam_x, {k: feet_x[k] for k in shared}, grass, size_x[0], size_x[1], min_players)
-        if got is not None:
-            worst = got if worst is None else max(worst, got)
+    for got in figures:
+        if got != -1.0:  # -1: too few players to compare in that direction
+            worst = float(got) if worst is None else max(worst, float(got))
     return worst
 
 

@@ -55,6 +55,7 @@ from app.geometry.jac import JAC_GAMMAS, jac_admitted
 from app.geometry.pitch import MIN_LINE_CLASSES
 from app.services.calibration.admission import admission_args, fields_admitted, is_admitted
 from app.services.calibration.calibrating import apply_calibration
+from app.services.derivation.loading import forget_view_players, view_players
 from app.services.wording.doubt_words import with_sentence
 from app.services.wording.words import player_camera_sentence
 
@@ -63,8 +64,23 @@ PlayerRow = tuple[str, "str | None", tuple[float, float, float, float]]
 
 
 def frame_players(frame: Frame) -> list[PlayerRow]:
-    """The stored player boxes of ``frame`` (``Frame.players``) as rows."""
+    """The stored player boxes of ``frame`` as rows: as a recomputation's load read them
+    (``app.services.derivation.loading.load_view_players``), else ``Frame.players``."""
+    kept = view_players(frame)
+    if kept is not None:
+        return kept.rows
     return [(p.cls, p.ident, (p.x1, p.y1, p.x2, p.y2)) for p in frame.players]
+
+
+def frame_feet(frame: Frame) -> dict[PlayerKey, np.ndarray]:
+    """:func:`feet_of` the stored player boxes of ``frame`` (:func:`frame_players`), made once per frame while the
+    session keeps the boxes a recomputation's load read (an edit's ball asks for them more than once)."""
+    kept = view_players(frame)
+    if kept is None:
+        return feet_of(frame_players(frame), frame.width, frame.height)
+    if kept.feet is None:
+        kept.feet = feet_of(kept.rows, frame.width, frame.height)
+    return kept.feet
 
 
 class PlacementView(NamedTuple):
@@ -520,3 +536,4 @@ def store_players(session: Session, frames: list[tuple[Frame, tuple[PlayerRow, .
         session.connection().execute(sa.insert(cast(sa.Table, PlayerBox.__table__)), rows)
     for f, _, _ in frames:  # written past the ORM: read again when next asked for
         session.expire(f, ["players"])
+    forget_view_players([f for f, _, _ in frames])

@@ -35,7 +35,7 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import distance_to_play_volume, within_play_volume
 from app.geometry.triangulation import BallObservation, PairGeometry, TriangulationResult, triangulate_ball
 from app.geometry.weighting import fits_own_lines
-from app.services.calibration.players import feet_of, frame_players
+from app.services.calibration.players import frame_feet
 from app.services.derivation import cameras as shared
 from app.services.derivation.cameras import PairPlayersMemo
 from app.services.derivation.doubts import (
@@ -95,8 +95,7 @@ def players_disagreement(system: System, cameras: Mapping[Any, Camera],
 
     def feet_of_view(view_id: Any) -> dict:
         if view_id not in feet:
-            f = frames[view_id]
-            feet[view_id] = feet_of(frame_players(f), f.width, f.height)
+            feet[view_id] = frame_feet(frames[view_id])
         return feet[view_id]
 
     def figure(a: Any, b: Any) -> float | None:

@@ -32,6 +32,7 @@ from app.geometry.pair_error import REFERENCE_WIDTH_PX, scaled_error_px
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
+from app.services.calibration.players import frame_players
 from app.services.derivation.cameras import stored_camera
 from app.services.derivation.loading import load_view_players, load_view_predictions
 from app.services.derivation.rows import put_values, replace_rows
@@ -233,7 +234,7 @@ def with_players(system: System, views: list[DoubtView], detections: dict[int, l
     session = object_session(system)
     if session is not None:
         load_view_players(session, list(frames.values()))
-    return [dataclasses.replace(v, players=tuple((p.x1, p.y1, p.x2, p.y2) for p in frames[v.view_id].players))
+    return [dataclasses.replace(v, players=tuple(box for _, _, box in frame_players(frames[v.view_id])))
             if v.view_id in frames else v for v in views]
 
 

@@ -111,17 +111,62 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
         _hand_over(f, "predictions", found[f.id])
 
 
+#: Where :func:`load_view_players` keeps a frame's person boxes: a :class:`ViewPlayers` in the ``info`` of the frame's
+#: instance state (it lives and goes with the object, as a loaded relationship would); a frame whose boxes are written
+#: again drops it (``calibration.players.store_players``).
+VIEW_PLAYERS = "v3d.view_players"
+
+
+class ViewPlayers:
+    """One view's person boxes as :func:`load_view_players` read them: ``rows`` ``(class, ID, (x1, y1, x2, y2))`` in
+    id order, and ``feet``, its foot points by player (``app.services.calibration.players.frame_feet``), made on the
+    first ask (None until then)."""
+
+    __slots__ = ("rows", "feet")
+
+    def __init__(self, rows: list[tuple[str, str | None, tuple[float, float, float, float]]]) -> None:
+        self.rows = rows
+        self.feet: dict[Any, Any] | None = None
+
+
+@functools.cache
+def _players_statement() -> sa.Select:
+    """The person boxes of the frames ``ids`` (an expanding parameter), their columns as plain rows, in id order."""
+    return (sa.select(PlayerBox.frame_id, PlayerBox.cls, PlayerBox.ident, PlayerBox.x1, PlayerBox.y1, PlayerBox.x2,
+                      PlayerBox.y2)
+            .where(PlayerBox.frame_id.in_(sa.bindparam("ids", expanding=True))).order_by(PlayerBox.id))
+
+
 def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
-    """Hand each of ``frames`` whose person boxes (``Frame.players``) the session has not loaded its boxes, in one
-    query; frames with theirs loaded are left as they are."""
+    """Read the person boxes of each of ``frames`` whose boxes (``Frame.players``) the session has not loaded, in one
+    query, as plain rows kept in the session (:data:`VIEW_PLAYERS`, read by
+    ``app.services.calibration.players.frame_players``); frames with theirs loaded are left as they are. Plain rows,
+    not ORM objects: what reads them (the players check of the ball, the detector's check) reads their values only,
+    and building a few dozen ORM objects was most of what the boxes cost an edit (``benchmarks/SCALE.md``)."""
     wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
     if not wanted:
         return
-    found: dict[int, list[PlayerBox]] = {f.id: [] for f in wanted}
-    for p in session.scalars(sa.select(PlayerBox).where(PlayerBox.frame_id.in_(found)).order_by(PlayerBox.id)):
-        found[p.frame_id].append(p)
+    found: dict[int, list[tuple[str, str | None, tuple[float, float, float, float]]]] = {f.id: [] for f in wanted}
+    for fid, cls, ident, x1, y1, x2, y2 in session.execute(_players_statement(), {"ids": list(found)}):
+        found[fid].append((cls, ident, (x1, y1, x2, y2)))
     for f in wanted:
-        _hand_over(f, "players", found[f.id])
+        sa.inspect(f).info[VIEW_PLAYERS] = ViewPlayers(found[f.id])
+
+
+def view_players(frame: Frame) -> ViewPlayers | None:
+    """The person boxes :func:`load_view_players` read for ``frame`` (None: not read so, or ``Frame.players``
+    loaded since, which then holds them)."""
+    state = sa.inspect(frame)
+    if "players" not in state.unloaded:
+        return None
+    got: ViewPlayers | None = state.info.get(VIEW_PLAYERS)
+    return got
+
+
+def forget_view_players(frames: Sequence[Frame]) -> None:
+    """Drop what :func:`load_view_players` kept of ``frames`` (their boxes were written again)."""
+    for f in frames:
+        sa.inspect(f).info.pop(VIEW_PLAYERS, None)
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:
