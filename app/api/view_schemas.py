@@ -27,6 +27,7 @@ from app.db.models import (
     Frame,
     FrameRole,
     OptimisedBox,
+    ReviewBatch,
     ReviewDecision,
     ReviewStatus,
     System,
@@ -40,6 +41,7 @@ from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
+from app.services.curation.batches import batch_plan
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
 from app.services.derivation.doubts import doubt_provenance, suggestion_json
@@ -83,6 +85,10 @@ class ReviewOut(BaseModel):
                                         "exclusion, field lines, an undo); null otherwise.")
     calibration: Optional["CalibrationReviewOut"] = Field(
         None, description="Views only: the decision on the view's calibration, beside the decision on its ball.")
+    batch_id: Optional[int] = Field(None, description=(
+        "Systems only: the batch that accepted the system after a random sample (POST /api/batches/{id}/accept); "
+        "null for a person's decision (any person's later decision clears it)."))
+
     @classmethod
     def of(cls, decision: Optional[ReviewDecision]) -> "ReviewOut":
         """The decision, or pending when there is none (a view's with its calibration decision)."""
@@ -532,6 +538,28 @@ class TriangulationOut(BaseModel):
         return rule_reference_width_px(self.rule)
 
 
+class BatchAcceptanceOut(BaseModel):
+    """How a batch accepted the system after a random sample (``app.services.curation.batches``): the batch's id, who
+    made it and who accepted it, when, and its zero-acceptance plan in numbers and in words."""
+
+    batch_id: int
+    created_by: str
+    decided_by: Optional[str] = Field(description="Who accepted the batch (its accept's actor).")
+    decided_at: Optional[datetime]
+    confidence: float = Field(description="The plan's confidence (a fraction).")
+    max_wrong_share: float = Field(description="The largest share of wrong systems the plan tolerates (a fraction).")
+    sample: int = Field(description="How many of the batch's systems a person reviewed and accepted (the sample).")
+    systems: int = Field(description="How many systems the batch took (the sample included).")
+    plan: str = Field(description="The plan in words: 'if none of these 59 is wrong, you can be 95 % sure that at "
+                      "most 5 % of the 240 are'.")
+
+    @classmethod
+    def of(cls, batch: ReviewBatch) -> "BatchAcceptanceOut":
+        return cls(batch_id=batch.id, created_by=batch.created_by, decided_by=batch.decided_by,
+                   decided_at=batch.decided_at, confidence=batch.confidence, max_wrong_share=batch.max_wrong_share,
+                   sample=len(batch.sample_ids), systems=len(batch.system_ids), plan=batch_plan(batch))
+
+
 class SystemView(BallEvidenceFields):
     """The system view of ``docs/api.md`` (the UI contract)."""
 
@@ -553,6 +581,9 @@ class SystemView(BallEvidenceFields):
     open_by: list[PresenceOut] = Field(
         description="Everyone who has the system open now, the caller included (live presence claims, oldest first; "
                     "PUT /api/systems/{id}/presence).")
+    accepted_in_batch: Optional[BatchAcceptanceOut] = Field(None, description=(
+        "When the system's acceptance is a batch's, after a random sample of it (review.batch_id): the batch and its "
+        "plan in words, as a release's document (version 2) says it; null for a person's decision."))
 
     @classmethod
     def of(cls, page: SystemPageData) -> "SystemView":
@@ -568,6 +599,7 @@ class SystemView(BallEvidenceFields):
             ball_sigma_m=tri.sigma_m if tri is not None else None, views=[ViewOut.of(f, tri) for f in system.frames],
             doubts=[DoubtOut.of(d, names) for d in system.doubts], **evidence_fields(system),
             assignment=AssignmentOut.of(page.assignment), open_by=[PresenceOut.of(p, now) for p in page.open_by],
+            accepted_in_batch=BatchAcceptanceOut.of(page.batch) if page.batch is not None else None,
         )
 
 

@@ -232,7 +232,7 @@ class SystemPage {
     document.title = `${sys.name} · v3d review`;
     $("system-name").textContent = sys.name;
     $("system-game").textContent = [game.league, game.season, game.match].filter(Boolean).join(" · ");
-    renderStatus(sys.review);
+    renderStatus(sys.review, sys.accepted_in_batch);
     this.pass.arrive(sys.id); // its place in the pass at once, before the visit answers
     this.presence.show(sys);
     $("prev").disabled = this.stepId(-1) == null; // in a pass: its neighbours (pass.js)

@@ -36,7 +36,10 @@ export function renderDoubts(sys, select) {
   $("system-doubts").replaceChildren(...chips);
 }
 
-export function renderStatus(review) {
+/** The system's decision: its badge, the current decision key, when it was decided (or why it is pending again)
+ * and, when a batch accepted it after a random sample (`batch`: the system view's accepted_in_batch), which batch
+ * and its plan in words, as a release's document says it. */
+export function renderStatus(review, batch = null) {
   const status = review?.status || "pending";
   const badge = $("system-status");
   badge.className = `badge ${status}`;
@@ -46,6 +49,17 @@ export function renderStatus(review) {
   }
   $("review-meta").textContent = decisionNote(review);
   $("review-meta").classList.toggle("bad", status === "pending" && Boolean(review?.reset_reason));
+  const byBatch = status === "accepted" && batch && review?.batch_id === batch.batch_id;
+  $("review-batch").hidden = !byBatch;
+  $("review-batch").textContent = byBatch ? batchNote(batch) : "";
+}
+
+/** A batch's acceptance in words: "Accepted in batch 7 after a sample of 59 of 240 (made by rev, accepted by
+ * rev): if none of these 59 is wrong, you can be 95 % sure that at most 5 % of the 240 are." */
+export function batchNote(batch) {
+  const who = batch.decided_by ? `, accepted by ${batch.decided_by}` : "";
+  return `Accepted in batch ${batch.batch_id} after a sample of ${batch.sample} of ${batch.systems} ` +
+    `(made by ${batch.created_by}${who}), not looked at by a person: ${batch.plan}.`;
 }
 
 export function renderBall(sys) {

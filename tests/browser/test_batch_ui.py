@@ -72,6 +72,15 @@ def test_the_vouched_are_accepted_after_a_sample_and_a_rejected_sample_ends_its_
         entry = api_json(page, f"/api/audit?system_id={sid}&limit=1")["items"][0]
         assert entry["after"]["review"]["batch_id"] == batch_id
     assert api_json(page, f"/api/batches/{batch_id}")["state"] == "accepted"
+    # an accepted one's page says the batch accepted it after a sample, with the plan; a sampled one's does not
+    other = next(i for i in first if i not in batch["sample"])
+    page.goto(f"/systems/{other}")
+    said = page.locator(tid("review-batch"))
+    said.filter(has_text=f"Accepted in batch {batch_id} after a sample of 2 of 4").wait_for()
+    assert "you can be 75 % sure that at most 50 % of the 4 are" in said.inner_text()
+    page.goto(f"/systems/{batch['sample'][0]}")
+    page.locator(tid("system-status")).filter(has_text="accepted").wait_for()
+    assert page.locator(tid("review-batch")).is_hidden()
 
     _vouch(seeded_settings, second)
     batch_id = _start(page, "50", "50")  # one sampled of the two

@@ -3,6 +3,8 @@ scenes with known truth: the ball's detection is chosen among false ones, a box 
 alone suggests nothing, one labelled view needs two detected views, an outvoted label gets the evidence."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from app.geometry.ball import sphere_image_box
@@ -26,8 +28,13 @@ def det(name, score=0.8, **kw) -> Detection:
     return Detection("yolo-sn-ball", score, true_box(name, **kw))
 
 
-def checked(views, detections):
-    return check_detections(views, judge_system(views, SETTINGS), detections, SETTINGS, SIZE)
+#: The 3D ball judged by class (``V3D_BALL_RULE=weights``): a view below admission or an unsure camera weighs no full
+#: vote, so the checks that fill only boxes that cannot make a ball (weak_ray, weak_view) have boxes to fill.
+BY_CLASS = dataclasses.replace(SETTINGS, below_admission_takes_part=False)
+
+
+def checked(views, detections, settings=SETTINGS):
+    return check_detections(views, judge_system(views, settings), detections, settings, SIZE)
 
 
 def test_the_balls_detection_is_chosen_among_false_ones_and_replaces_ball_missing():
@@ -450,18 +457,21 @@ def test_two_labels_whose_cameras_few_lines_alone_fitted_place_a_detection_they_
 
 
 def test_a_weak_labels_ray_fills_the_one_detection_near_it_only_where_the_box_cannot_make_a_3d_ball():
-    """Main's label, its camera fitted to three lines and below admission (the triangulation leaves it out), and one
-    detection in goal near its ray: filled (code weak_ray), since goal's box cannot make a ball with that label. The
-    same label admitted would make one (a full vote and a half): nothing. Two boxes near the ray: nothing."""
+    """Main's label, its camera fitted to three lines and below admission (the triangulation by class leaves it out),
+    and one detection in goal near its ray: filled (code weak_ray), since goal's box cannot make a ball with that
+    label. The same label admitted would make one (a full vote and a half): nothing. Two boxes near the ray: nothing.
+    Judged by evidence, main's camera fits its own lines and joins the ball: goal's box would make one with it alone,
+    so nothing is filled."""
     out = scene(main={"line_classes": 3, "uncertainty": SURE, "admitted": False},
                 **{n: {"box": None} for n in CAMERAS if n != "main"})
     ball = det("goal", 0.7, shift=(1.0, -0.5))
-    found = detected(checked(out, {"goal": [ball]}))
+    found = detected(checked(out, {"goal": [ball]}, BY_CLASS))
     assert set(found) == {"goal"} and found["goal"].code == "weak_ray" and near_truth("goal", found["goal"]) < 2.0
     assert np.allclose(found["goal"].evidence["ball3d"], BALL, atol=0.3)
     assert "cannot make a 3D ball" in doubt_message(found["goal"], {"goal": "goal.png", "main": "main.png"})
-    assert detected(checked(main_helper(False), {"goal": [ball]})) == {}
-    assert detected(checked(out, {"goal": [ball, beside_main_ray("goal", 40.0)]})) == {}
+    assert detected(checked(main_helper(False), {"goal": [ball]}, BY_CLASS)) == {}
+    assert detected(checked(out, {"goal": [ball, beside_main_ray("goal", 40.0)]}, BY_CLASS)) == {}
+    assert detected(checked(out, {"goal": [ball]})) == {}
 
 
 def test_a_weak_labels_ray_and_a_view_as_unsure_fill_nothing_a_sure_view_is_filled():
@@ -470,8 +480,8 @@ def test_a_weak_labels_ray_and_a_view_as_unsure_fill_nothing_a_sure_view_is_fill
     views = scene(main={"uncertainty": UNSURE, "admitted": False},
                   corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": UNSURE},
                   goal={"box": None}, opposite={"box": None})
-    assert detected(checked(views, {"corner": [det("corner")]})) == {}
-    found = detected(checked(views, {"goal": [det("goal")]}))
+    assert detected(checked(views, {"corner": [det("corner")]}, BY_CLASS)) == {}
+    found = detected(checked(views, {"goal": [det("goal")]}, BY_CLASS))
     assert set(found) == {"goal"} and found["goal"].code == "weak_ray" and near_truth("goal", found["goal"]) < 2.0
 
 

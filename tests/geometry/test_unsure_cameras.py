@@ -10,6 +10,7 @@ from app.geometry.doubts.pairings import _telling
 from app.geometry.doubts.weak import _uncounted
 from app.geometry.weighting import calibration_weight
 from tests.geometry.test_detections import (
+    BY_CLASS,
     UNSURE,
     beside_main_ray,
     checked,
@@ -70,24 +71,31 @@ def test_a_view_whose_camera_takes_no_part_is_checked_along_a_lone_labelled_ray_
     views = scene(corner=weak, goal={"box": None}, opposite={"box": None})
     assert _sigma(views, "corner")[0] == 0.0
     ball = det("corner", 0.6, shift=(6.0, -4.0))
-    found = detected(checked(views, {"corner": [ball]}))
+    found = detected(checked(views, {"corner": [ball]}, BY_CLASS))
     assert set(found) == {"corner"} and found["corner"].code == "weak_view"
     assert near_truth("corner", found["corner"]) < 8.0
     assert np.linalg.norm(np.asarray(found["corner"].evidence["ball3d"]) - BALL) < 1.0
-    assert detected(checked(views, {"corner": [ball, beside_main_ray("corner", 40.0)]})) == {}
+    assert detected(checked(views, {"corner": [ball, beside_main_ray("corner", 40.0)]}, BY_CLASS)) == {}
     lost = scene(corner={**weak, "uncertainty": LOST}, goal={"box": None}, opposite={"box": None})
-    assert detected(checked(lost, {"corner": [ball]})) == {}
+    assert detected(checked(lost, {"corner": [ball]}, BY_CLASS)) == {}
+    # judged by evidence corner's camera (admitted, its two lines fitted) joins the ball weighed by its sigma: its
+    # box and main's lone ray would make a ball nothing else checks, so it is not filled
+    assert detected(checked(views, {"corner": [ball]})) == {}
 
 
 def test_a_camera_its_players_alone_placed_is_weighed_by_its_players_fit_not_by_a_jac_it_has_no_lines_for():
     placed = {"box": None, "line_classes": 0, "jac": None, "player_assisted": True, "uncertainty": UNSURE}
     views = scene(corner=placed, goal={"box": None}, opposite={"box": None})
     assert _sigma(views, "corner")[0] == 0.0  # no vote: its few lines cannot vouch for it
-    found = detected(checked(views, {"corner": [det("corner", 0.6, shift=(6.0, -4.0))]}))
+    found = detected(checked(views, {"corner": [det("corner", 0.6, shift=(6.0, -4.0))]}, BY_CLASS))
     assert set(found) == {"corner"} and found["corner"].code == "weak_view"
     # a camera fitted to a line it fits badly (JaC 0.3) is a failed fit, whoever placed it
     failed = scene(corner={**placed, "line_classes": 1, "jac": 0.3}, goal={"box": None}, opposite={"box": None})
-    assert detected(checked(failed, {"corner": [det("corner", 0.6, shift=(6.0, -4.0))]})) == {}
+    assert detected(checked(failed, {"corner": [det("corner", 0.6, shift=(6.0, -4.0))]}, BY_CLASS)) == {}
+    # judged by evidence, the same camera below admission (no JaC: no lines of its own to fit) takes no part in the
+    # ball: its box makes none, and it is filled
+    below = scene(corner={**placed, "admitted": False}, goal={"box": None}, opposite={"box": None})
+    assert set(detected(checked(below, {"corner": [det("corner", 0.6, shift=(6.0, -4.0))]}))) == {"corner"}
 
 
 def test_a_weak_views_box_is_asked_whether_it_counts_not_the_boxes_other_checks_placed():
@@ -95,9 +103,17 @@ def test_a_weak_views_box_is_asked_whether_it_counts_not_the_boxes_other_checks_
     corner, goal = det("corner"), det("goal")
     # goal's box, placed by a check as one that may make a ball, counts with main's label: asked of itself, the
     # pair weighs two votes; corner's box (no vote) makes no ball with either
-    assert not _uncounted({"goal": goal, "corner": corner}, views, SETTINGS)
-    assert _uncounted({"corner": corner}, views, SETTINGS, placed={"goal": goal})
+    assert not _uncounted({"goal": goal, "corner": corner}, views, BY_CLASS)
+    assert _uncounted({"corner": corner}, views, BY_CLASS, placed={"goal": goal})
     # corner with a sure camera would weigh half a vote: with a full one that is a ball
     sure = scene(corner={"box": None, "line_classes": 2, "jac": 1.0,
                          "uncertainty": {**UNSURE, "pan_deg": 0.02, "tilt_deg": 0.02}}, goal={"box": None})
-    assert not _uncounted({"corner": corner}, sure, SETTINGS, placed={"goal": goal})
+    assert not _uncounted({"corner": corner}, sure, BY_CLASS, placed={"goal": goal})
+    # judged by evidence every camera that takes part joins the ball: corner's box beside two labels (main's and
+    # opposite's, or main's and goal's placed box) joins the ball they make; beside main's label alone it would make
+    # one with it
+    assert _uncounted({"corner": corner}, views, SETTINGS)
+    lone = scene(corner={"box": None, "line_classes": 2, "jac": 1.0, "uncertainty": UNSURE}, goal={"box": None},
+                 opposite={"box": None})
+    assert _uncounted({"corner": corner}, lone, SETTINGS, placed={"goal": goal})
+    assert not _uncounted({"corner": corner}, lone, SETTINGS)

@@ -199,6 +199,10 @@ class DoubtSettings:
             takes no part in the checks: with the game's rig, two or three classes give a camera that
             fits its own lines perfectly (JaC 1.0) yet may turn its ball ray by degrees, so its ball
             would be accused for its camera's fault (on dev-large, every false alarm of that kind).
+        below_admission_takes_part: the system's 3D ball is judged by evidence
+            (``app.services.derivation.ball.takes_part``): a labelled view below admission joins its ball while its
+            camera fits most of its own lines (``app.geometry.weighting.fits_own_lines``). What the checks that may
+            place a box only where it cannot make a 3D ball ask (``app.geometry.doubts.weak._uncounted``).
     """
 
     triangulation_tau_px: float
@@ -214,6 +218,7 @@ class DoubtSettings:
     mirror_rig_near_m: float
     mirror_rig_gap_m: float
     min_line_classes: int
+    below_admission_takes_part: bool
 
 
 def _r(x: float, nd: int = 1) -> float:

@@ -25,11 +25,11 @@ from app.geometry.doubts.pairings import (
     _telling,
 )
 from app.geometry.triangulation import MIN_PAIR_WEIGHT, BallObservation
-from app.geometry.weighting import calibration_weight, label_centre, project_point, rule_scale
+from app.geometry.weighting import calibration_weight, fits_own_lines, label_centre, project_point, rule_scale
 
 
 def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
-    """What the view's label weighs in the triangulation (``app.geometry.triangulation.triangulate_ball``
+    """What the view's label weighs in the triangulation by class (``app.geometry.triangulation.triangulate_ball``
     ``view_weights``): its calibration's weight (:func:`app.geometry.weighting.calibration_weight`, read where its
     label's ray meets the grass) for a camera with its fit's uncertainty, a full vote for one without (a camera a
     person set or a release's: the recomputation counts it whole); none for a view below admission, which the
@@ -39,14 +39,32 @@ def _triangulation_weight(view: DoubtView, s: DoubtSettings) -> float:
     return calibration_weight(view, s)[0] if view.uncertainty else 1.0
 
 
+def _takes_part(view: DoubtView) -> bool:
+    """Whether the view joins the 3D ball judged by evidence (``app.services.derivation.ball.takes_part``): a camera,
+    admitted, or below admission while it fits most of its own lines; its ray then weighs by its uncertainty alone,
+    whatever its line classes."""
+    return view.camera is not None and (view.admitted or fits_own_lines(view.jac))
+
+
 def _uncounted(fills: Mapping[Hashable, Detection], views: Sequence[DoubtView], s: DoubtSettings,
                placed: Mapping[Hashable, Detection] | None = None) -> bool:
-    """Whether placing the boxes ``fills`` (view id -> detection) leaves every view so filled out of the 3D ball: no
-    pair of such a view and another labelled or filled view (``fills``, and ``placed``: boxes other checks already
-    placed, which count as labels) weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full vote and at least a
-    half one). Then a wrong box costs a label, never a system's ball. The views of ``placed`` are not asked: their
-    boxes were checked as ones that may make a ball."""
+    """Whether placing the boxes ``fills`` (view id -> detection) makes no 3D ball of its own: a wrong box then costs
+    a label, never a system's ball. The boxes ``placed`` (boxes other checks already placed, checked as ones that
+    may make a ball) count as labels; their views are not asked.
+
+    By class (``s.below_admission_takes_part`` false): no pair of a filled view and another labelled or filled view
+    weighs :data:`MIN_PAIR_WEIGHT` in the triangulation (a full vote and at least a half one), so every filled view
+    stays out of the ball. By evidence (the default rule): every view that takes part (:func:`_takes_part`) joins the
+    ball weighed by its uncertainty, a few-lined or unsure camera too, so a filled view that takes part stays out of
+    nothing; its box makes no ball of its own only where at least two other labels that take part are there to make
+    the ball it joins (it moves that ball within its uncertainty). A filled view beside one labelled ray would make
+    the ball with it alone: with an unsure camera, a ball 1 m off on a made detector set (``benchmarks/VOUCH.md``,
+    2026-11-29 later)."""
     boxes = {**(placed or {}), **fills}
+    if s.below_admission_takes_part:
+        others = [v for v in views if not (v.excluded or v.suggested) and v.view_id not in fills and _takes_part(v)
+                  and (v.view_id in boxes or label_centre(v) is not None)]
+        return len(others) >= 2 or not any(_takes_part(v) for v in views if v.view_id in fills)
     weights: dict[Hashable, float] = {}
     for v in views:
         if v.excluded or v.suggested:

@@ -24,7 +24,7 @@ import getpass
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any, Optional
+from typing import Any, Optional, cast
 
 import sqlalchemy as sa
 from sqlalchemy.dialects import postgresql, sqlite
@@ -182,6 +182,37 @@ def record_many(session: Session, *, actor: Optional[str], action: str, changes:
                      "summary": summarize(action, before, after, reverts_id=c.reverts_id)[:SUMMARY_MAX]})
     if rows:
         session.execute(sa.insert(AuditEntry), rows)
+
+
+def record_selected(session: Session, *, actor: Optional[str], action: str, systems: sa.Select[int, int, int],
+                    before: dict[str, Any], after: dict[str, Any]) -> None:
+    """One entry per row of ``systems`` for a write that gives many systems the same change (a batch's acceptance
+    after a sample, ``app.services.curation.batches``): one ``INSERT ... SELECT`` in the caller's transaction, so
+    its cost does not grow with a Python object, a bound row and a summary per system. Each entry is the one
+    :func:`record_many` would write for that system (its summary, both states inline, the version the write gives
+    it). The database assigns the entries' ids in ``systems``' order.
+
+    Args:
+        systems: a select of three columns per system: its id, its game's id and the version the write gives it.
+        before, after: the state of every selected system before and after (small states: a decision's).
+
+    Raises:
+        ValueError: an action outside :data:`ACTIONS`, or a state too large to be stored inline.
+    """
+    if action not in ACTIONS:
+        raise ValueError(f"unknown audit action {action!r}")
+    before, after = json_safe(before), json_safe(after)
+    if max(len(canonical_json(before)), len(canonical_json(after))) >= LARGE_STATE_BYTES:
+        raise ValueError("a state too large to be recorded with many others")
+    table = cast(sa.Table, AuditEntry.__table__)
+    rows = systems.subquery()
+    sid, gid, version = rows.c
+    constants = {"at": utcnow(), "actor": actor or local_actor(), "action": action, "before": before, "after": after,
+                 "summary": summarize(action, before, after)[:SUMMARY_MAX]}
+    columns = [sa.literal(value, type_=table.c[name].type).label(name) for name, value in constants.items()]
+    select = sa.select(*columns, sid, gid, version).select_from(rows).order_by(sid)
+    session.execute(sa.insert(table).from_select([*constants, "system_id", "game_id", "system_version"], select,
+                                                 include_defaults=False))
 
 
 #: States (before / after) whose canonical JSON is at least this long (bytes) are stored once, compressed, in

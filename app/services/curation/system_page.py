@@ -19,7 +19,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, joinedload
 
 from app.core.errors import found
-from app.db.models import Frame, System
+from app.db.models import Frame, ReviewBatch, System
 from app.db.scope import FRAME_ROWS
 from app.db.session import reads_on_their_own
 from app.geometry.camera import Camera
@@ -43,13 +43,15 @@ _PITCH_CACHE_SIZE = 1024
 class SystemPageData:
     """A system loaded for its page (game, review, triangulation and pairs, frames with field lines,
     calibration, ball label, reprojection, optimised box and review, doubts), its queue neighbours, its
-    assignment and who has it open now (``app.services.curation.presence``, everyone's live claims)."""
+    assignment and who has it open now (``app.services.curation.presence``, everyone's live claims), and, when its
+    acceptance is a batch's (``ReviewDecision.batch_id``), that batch (``app.services.curation.batches``)."""
 
     system: System
     prev_id: Optional[int]
     next_id: Optional[int]
     assignment: Optional[Assignment] = None
     open_by: list[Presence] = field(default_factory=list)
+    batch: Optional[ReviewBatch] = None
 
 
 def round_px(values: Any) -> Any:
@@ -194,5 +196,7 @@ def system_page(session: Session, system_id: int, filters: SystemFilters = Syste
         reads_on_their_own(session)
     system = held if held is not None else load_system(session, system_id)
     prev_id, next_id = queue_neighbours(session, system_id, filters, sort, held=held)
+    batch_id = system.review.batch_id if system.review is not None else None
     return SystemPageData(system, prev_id, next_id, assignment_of(session, system),
-                          open_on(session, [system_id]).get(system_id, []))
+                          open_on(session, [system_id]).get(system_id, []),
+                          session.get(ReviewBatch, batch_id) if batch_id is not None else None)

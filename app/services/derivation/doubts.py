@@ -40,10 +40,12 @@ from app.services.kinds import kind_of
 from app.services.wording.doubt_words import doubt_message
 
 
-def doubt_settings(settings: Settings) -> DoubtSettings:
+def doubt_settings(settings: Settings, weighs_calibrations: bool = True) -> DoubtSettings:
     """The judge's settings, every one from ``settings``: the triangulation's tau, rule, baseline, parallax and
-    ball diameter, the ``doubt_*`` thresholds (``V3D_DOUBT_*``), and the play volume
-    (``app.geometry.pitch.PLAY_VOLUME``, its height ``doubt_max_ball_height_m``)."""
+    ball diameter, the ``doubt_*`` thresholds (``V3D_DOUBT_*``), the play volume
+    (``app.geometry.pitch.PLAY_VOLUME``, its height ``doubt_max_ball_height_m``), and whether the 3D ball lets views
+    below admission take part (the rule by evidence, for a kind that weighs its calibrations,
+    ``weighs_calibrations``: ``app.services.derivation.ball.takes_part``)."""
     return DoubtSettings(
         triangulation_tau_px=settings.triangulation_tau_px, pair_error_rule=settings.pair_error_rule,
         min_baseline_m=settings.min_baseline_m, min_parallax_deg=settings.min_parallax_deg,
@@ -52,7 +54,8 @@ def doubt_settings(settings: Settings) -> DoubtSettings:
         ground_box_tolerance=settings.doubt_ground_box_tolerance,
         play_volume=dataclasses.replace(PLAY_VOLUME, max_height_m=settings.doubt_max_ball_height_m),
         mirror_rig_near_m=settings.doubt_mirror_rig_near_m, mirror_rig_gap_m=settings.doubt_mirror_rig_gap_m,
-        min_line_classes=settings.doubt_min_line_classes)
+        min_line_classes=settings.doubt_min_line_classes,
+        below_admission_takes_part=settings.ball_rule == "evidence" and weighs_calibrations)
 
 
 def is_excluded(frame: Frame) -> bool:
@@ -147,13 +150,14 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     confirmation say that number (:func:`with_confirmed_error`), the one the view shows once confirmed. Changes the
     session only; the caller commits (with the edit that caused it)."""
     weighed = weighed or weighed_views(system, settings, cameras)
-    judged = doubt_settings(settings)
+    judged = doubt_settings(settings, kind_of(system).weighs_calibrations)
     found = judge_system(weighed.views, judged, geometry, weighed.weighed)
     found = kind_of(system).judge_doubts(system, found, cameras)
     detections = stored_detections(system, settings.max_predictions_per_frame)
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
         found = check_detections(with_players(system, weighed.views, detections), found, detections, judged,
                                  settings.doubt_detection_size_tolerance, geometry, weighed.weighed)
+    found = without_unbacked_fixes(system, found)
     if after_confirming is not None:
         found = with_confirmed_error(system, found, after_confirming)
     names = {f.id: f.name for f in system.frames}
@@ -167,6 +171,44 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
                         "label_doubts": sum(1 for d in found if d.accuses_label),
                         "label_severity": label_severity(d.kind for d in found)})
     return list(system.doubts)
+
+
+#: The fixes that place a ball label where other views put the ball (a detector's box, or a box at their ball's
+#: projection): the actions a box of theirs may make a 3D ball with.
+PLACING_ACTIONS = ("snap_box", "snap_point")
+
+
+def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
+    """``doubts`` with no one-key fix where, in a system without a 3D ball, the fix would place a label that the
+    ball's rule has no label of a person to check against:
+
+    * placed from the agreement of two or more labelled views (``evidence["agreeing_views"]``) from whose labels the
+      ball's rule keeps no ball (it refused their pairs: beyond their joint sigma, a sigma above the bound, players
+      that disagree ...): the doubts' votes weigh views by class and the ball by its uncertainty, so the two may
+      disagree about such a pair; a box placed where the votes put the ball copies that agreement, and once
+      confirmed it pairs with those very labels into a ball the rule refused from them (``evidence["no_key"]``
+      ``"agreeing"``);
+    * placed from detections alone (code ``detections_agree``: no labelled view takes part): two such boxes,
+      confirmed, make a ball of the detector's boxes alone, which its confirmations of those same boxes would then
+      vouch for (``"detections"``).
+
+    On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
+    (``benchmarks/VOUCH.md``, 2026-11-29 later). The doubt stays with its numbers (its words say why there is no
+    key): a person places the label by eye. A fix placed from one labelled ray with a detection (its own checks pair
+    them), and every fix in a system with a 3D ball, are left as they are."""
+    if system.triangulation is not None and system.triangulation.ball3d is not None:
+        return doubts
+    labelled = {f.id for f in system.frames if f.ball_label is not None and not f.ball_label.suggested
+                and f.ball_label.centre is not None}
+    out = []
+    for d in doubts:
+        if d.suggestion and d.suggestion.get("action") in PLACING_ACTIONS:
+            agreeing = [v for v in (d.evidence or {}).get("agreeing_views") or [] if v in labelled]
+            why = "agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree" else None
+            if why is not None:
+                d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, "no_key": why})
+        out.append(d)
+    return out
 
 
 #: ``after_confirming(frame, centre, box)``: how far (px of the view) a label centred at ``centre`` (its box ``box``,

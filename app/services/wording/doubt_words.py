@@ -35,7 +35,22 @@ def doubt_message(d: DoubtFinding, names: Names) -> str:
     Raises:
         KeyError: a kind/code pair this module has no sentence for (a new code must get its words here).
     """
-    return _WRITERS[(d.kind, d.code)](d.evidence or {}, names.get(d.view_id, str(d.view_id)), names)
+    ev = d.evidence or {}
+    said = _WRITERS[(d.kind, d.code)](ev, names.get(d.view_id, str(d.view_id)), names)
+    return said + _no_key(ev, names)
+
+
+def _no_key(ev, n) -> str:
+    """Why a placed box gets no fix key (``evidence["no_key"]``,
+    ``app.services.derivation.doubts.without_unbacked_fixes``); "" when it has one."""
+    if ev.get("no_key") == "agreeing":
+        return (f" No fix key: the 3D ball keeps no ball from the labels of {_list(ev.get('agreeing_views'), n)} "
+                "(its rule refuses their agreement), so a box placed where they agree would make a ball nothing else "
+                "backs; place the label by eye where the ball is.")
+    if ev.get("no_key") == "detections":
+        return (" No fix key: no label a person placed takes part, and boxes placed from detections alone would make "
+                "a 3D ball of the detector's boxes alone; place the label by eye where the ball is.")
+    return ""
 
 
 def _refused(ev, v, n):

@@ -38,6 +38,7 @@ from v3d_client.models import (
     Annotator,
     AuditEntry,
     Batch,
+    BatchAcceptance,
     Comment,
     Decision,
     Doubt,
@@ -58,9 +59,9 @@ from v3d_client.version import __version__
 
 __all__ = [
     "APIError", "Annotator", "AnswerTooLarge", "AnswerTooSlow", "AuditEntry", "BadAnswer", "BadRequest", "Batch",
-    "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt", "EditConflict", "Forbidden", "Frame", "Game",
-    "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound", "NotJSON", "PreconditionRequired",
-    "PredictionSource", "ROUTES", "Redirected", "Release", "ReleaseDiff", "ServerError", "Stats", "System",
-    "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError", "VersionMismatch",
-    "View", "WrongShape", "__version__",
+    "BatchAcceptance", "Busy", "Client", "Comment", "Conflict", "Decision", "Doubt", "EditConflict", "Forbidden",
+    "Frame", "Game", "Invalid", "Job", "JobFailed", "JobTimeout", "LEFT_OUT", "NotFound", "NotJSON",
+    "PreconditionRequired", "PredictionSource", "ROUTES", "Redirected", "Release", "ReleaseDiff", "ServerError",
+    "Stats", "System", "SystemSummary", "Token", "TooLarge", "Unauthorized", "Unreachable", "User", "V3DError",
+    "VersionMismatch", "View", "WrongShape", "__version__",
 ]

@@ -59,6 +59,8 @@ class Review(Model):
     excluded: bool = False
     reset_reason: Optional[str] = None
     calibration: Optional[CalibrationReview] = None
+    #: A system's decision only: the batch that accepted it after a random sample (None: a person's decision).
+    batch_id: Optional[int] = None
 
 
 class Decision(Review):
@@ -271,6 +273,21 @@ class Doubt(Model):
         return request if isinstance(request, dict) else None
 
 
+class BatchAcceptance(Model):
+    """How a batch accepted a system after a random sample: the batch, who made and accepted it, when, and its plan
+    (fractions, the sample's and the batch's sizes, and in words)."""
+
+    batch_id: int
+    created_by: str
+    decided_by: Optional[str] = None
+    decided_at: Optional[datetime] = None
+    confidence: float
+    max_wrong_share: float
+    sample: int
+    systems: int
+    plan: str
+
+
 class System(Model):
     """A system as its page draws it (``GET /api/systems/{id}``): every view, its doubts, its triangulation;
     ``etag`` is the system's version (what a decision sends)."""
@@ -294,6 +311,8 @@ class System(Model):
     doubts: list[Doubt]
     assignment: Assignment
     open_by: list[Presence]
+    #: When a batch accepted the system after a sample: that batch and its plan (None: a person's decision).
+    accepted_in_batch: Optional[BatchAcceptance] = None
 
     def view(self, frame_id: int) -> View:
         """The view of frame ``frame_id``. Raises KeyError when the system has none."""

@@ -124,3 +124,26 @@ def test_the_sample_pass_holds_the_sample_in_its_order(client: TestClient, six: 
     rp = made.json()
     assert rp["systems"] == batch["sample"] and rp["filter"] == {"batch_id": batch["id"]} and rp["sort"] == "sample"
     assert client.post(f"/api/batches/{batch['id']}/pass").json()["id"] == rp["id"]
+
+
+def test_the_system_view_says_a_batch_accepted_it_after_a_sample_with_the_plan(
+        client: TestClient, six: list[Scene]) -> None:
+    batch = _make(client)
+    for sid in batch["sample"]:
+        _decide(client, sid, "accepted")
+    assert client.post(f"/api/batches/{batch['id']}/accept").status_code == 200
+    other = next(s.system_id for s in six[:5] if s.system_id not in batch["sample"])
+    view = client.get(f"/api/systems/{other}").json()
+    assert view["review"]["status"] == "accepted" and view["review"]["batch_id"] == batch["id"]
+    assert view["accepted_in_batch"] == {
+        "batch_id": batch["id"], "created_by": "test-admin", "decided_by": "test-admin",
+        "decided_at": view["accepted_in_batch"]["decided_at"], "confidence": 0.75, "max_wrong_share": 0.5,
+        "sample": 2, "systems": 5,
+        "plan": "if none of these 2 is wrong, you can be 75 % sure that at most 50 % of the 5 are"}
+    assert view["accepted_in_batch"]["decided_at"] is not None
+    # a sampled system was accepted by a person, and a person's later decision is no batch's
+    sampled = client.get(f"/api/systems/{batch['sample'][0]}").json()
+    assert sampled["review"]["batch_id"] is None and sampled["accepted_in_batch"] is None
+    _decide(client, other, "accepted")
+    again = client.get(f"/api/systems/{other}").json()
+    assert again["review"]["batch_id"] is None and again["accepted_in_batch"] is None

@@ -4,6 +4,7 @@ system, its wait for a sample not decided yet, its audit entries and its undo.""
 from __future__ import annotations
 
 import random
+from typing import Any
 
 import pytest
 import sqlalchemy as sa
@@ -11,7 +12,7 @@ from sqlalchemy.orm import Session
 
 from app.core.config import Settings
 from app.core.errors import ConflictError, InvalidInputError
-from app.db.models import AuditEntry, ReviewStatus, System, User, UserRole
+from app.db.models import AuditEntry, ReviewDecision, ReviewStatus, System, SystemKind, User, UserRole
 from app.db.models.enums import BallEvidence
 from app.services.curation import batches, decisions, editing, passes
 from app.services.curation.queue import SystemFilters
@@ -238,3 +239,69 @@ def test_a_batchs_acceptances_and_their_undo_are_no_persons_decisions(db_session
     assert undo is not None and undo.reverts_id is not None
     undone = db_session.get(AuditEntry, undo.reverts_id)
     assert undone is not None and undone.system_id == undo.system_id and undone.after["review"]["batch_id"] == batch.id
+
+
+def _bare_vouched(session: Session, n: int) -> list[int]:
+    """``n`` pending vouched systems of a new game, bare rows (the accept reads and writes no view)."""
+    game = make_game(session, f"bare {n}")
+    session.execute(sa.insert(System), [{"game_id": game.id, "name": f"{i}.png",
+                                         "kind": SystemKind.SOCCERNET_V3, "ball_evidence": BallEvidence.VOUCHED}
+                                        for i in range(n)])
+    session.commit()
+    return list(session.scalars(sa.select(System.id).where(System.game_id == game.id).order_by(System.id)))
+
+
+def _statements_of_accept(session: Session, n: int, monkeypatch: pytest.MonkeyPatch
+                          ) -> tuple[int, list[int], batches.ReviewBatch]:
+    """A batch of ``n`` bare vouched systems whose sample a person accepted, accepted: the statements its write
+    (``batches._accept``, after the checks) sent, the systems it accepted, the batch."""
+    ids = _bare_vouched(session, n)
+    batch = batches.create_batch(session, "rev", SystemFilters(game_id=session.get(System, ids[0]).game_id),
+                                 0.75, 0.5, rng=random.Random(n))
+    for sid in batch.sample_ids:
+        _decide(session, sid, "accepted", actor="ana")
+    sent: list[str] = []
+
+    def count(_conn: Any, _cursor: Any, statement: str, *_args: Any) -> None:
+        sent.append(statement)
+
+    write = batches._accept
+
+    def counted(*args: Any) -> None:
+        engine = session.get_bind()
+        sa.event.listen(engine, "before_cursor_execute", count)
+        try:
+            write(*args)
+        finally:
+            sa.event.remove(engine, "before_cursor_execute", count)
+
+    monkeypatch.setattr(batches, "_accept", counted)
+    monkeypatch.setattr(batches, "_CHUNK", 8)  # ids bound in chunks would show as more statements at this size
+    batches.accept_batch(session, batch.id, "rev")
+    monkeypatch.undo()
+    return len(sent), [i for i in ids if i not in batch.sample_ids], batch
+
+
+def test_a_batchs_accept_is_a_few_statements_whatever_its_size_with_an_entry_per_system(
+        db_session: Session, monkeypatch: pytest.MonkeyPatch) -> None:
+    small, _, _ = _statements_of_accept(db_session, 4, monkeypatch)
+    large, accepted, batch = _statements_of_accept(db_session, 60, monkeypatch)
+    # set-based: the same statements for 2 systems accepted as for 58 (a statement per system, or per chunk of
+    # bound ids, would grow with the batch)
+    assert large == small < 30
+    db_session.expire_all()
+    entries = db_session.scalars(sa.select(AuditEntry).where(AuditEntry.system_id.in_(accepted),
+                                                             AuditEntry.action == "system.review")
+                                 .order_by(AuditEntry.id)).all()
+    assert [e.system_id for e in entries] == accepted  # one each, in the systems' order
+    versions = dict(db_session.execute(sa.select(System.id, System.version).where(System.id.in_(accepted))).all())
+    for e in entries:
+        assert e.before == {"review": {"status": "pending", "comment": ""}} and e.actor == "rev"
+        assert e.after == {"review": {"status": "accepted", "comment": "", "batch_id": batch.id}}
+        assert e.system_version == versions[e.system_id] == 2 and e.summary == (
+            f"system accepted in batch {batch.id} after a sample")
+    statuses = db_session.execute(sa.select(System.review_status, ReviewDecision.status, ReviewDecision.batch_id)
+                                  .join(ReviewDecision, ReviewDecision.system_id == System.id)
+                                  .where(System.id.in_(accepted))).all()
+    assert len(statuses) == len(accepted)
+    assert set(statuses) == {(ReviewStatus.ACCEPTED, ReviewStatus.ACCEPTED, batch.id)}

@@ -87,14 +87,17 @@ def test_unsure_cameras_take_part_weighted_by_their_uncertainty(shared_dir, tmp_
     _each_right(fills, centres, ("ball_detected",))
 
 
-def test_a_view_whose_camera_takes_no_part_is_checked_along_the_lone_labelled_ray(shared_dir, tmp_path,
-                                                                                  fresh_session_factory):
-    # 5.png: three line classes, a camera unsure to 33 px (no vote), one labelled ray (sigma 5 px) and nothing else
-    # placed in its system: its one box near that ray within both sigmas fills it (weak_view), right
+def test_a_view_whose_camera_takes_no_part_in_the_votes_is_not_filled_where_its_box_would_make_the_ball(
+        shared_dir, tmp_path, fresh_session_factory):
+    # 5.png: three line classes, a camera unsure to 33 px (no vote in the doubts), one labelled ray (sigma 5 px) and
+    # nothing else placed in its system. Its one box near that ray within both sigmas is right, and the rule by class
+    # filled it (weak_view: the box made no ball there); the ball judged by evidence (the default) lets that camera
+    # take part weighed by its sigma, so the box would make the ball with the lone ray alone, what a weak fill may
+    # never do (on a made detector set such a fill made a ball 1.02 m off: benchmarks/VOUCH.md, 2026-11-29 later)
     fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
                             Path("synth_league_c/2031-2032/2031-10-15 - 18-00 Glenrock 0 - 1 Arden"))
-    box = _the_fill(fills, "5.png", "ball_detected", "weak_view")
-    assert _right(box, centres["5.png"])
+    assert "5.png" in centres
+    assert not [code for kind, code, _ in fills.get("5.png", []) if kind == "ball_detected"]
 
 
 def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir, tmp_path, fresh_session_factory):

@@ -344,3 +344,30 @@ def test_by_evidence_weak_fitted_calibrations_move_the_3d_ball_only_within_their
     assert tri.sigma_m is not None and 0.0 < tri.sigma_m < evidence.ball_max_sigma_m
     assert 1e-3 < moved < min(0.5, 3 * tri.sigma_m)
     assert not {p.reason for p in tri.pairs} & {"weak_calibrations", "outweighed", "parallax_below_min"}
+
+
+def test_a_box_placed_from_labels_the_ball_keeps_no_ball_from_or_from_detections_alone_gets_no_fix_key(
+        db_session: Session, db_settings: Settings) -> None:
+    from app.geometry.doubts import Doubt
+    from app.services.wording.doubt_words import doubt_message
+
+    scene = make_system(db_session, db_settings, make_game(db_session))
+    system = _stored(db_session, scene.system_id)
+    a, b, c = scene.frame_ids[:3]
+    box = {"action": "snap_box", "box": [100.0, 100.0, 112.0, 112.0]}
+    placed = Doubt("ball_missing", c, "consensus", {"agreeing_views": [a, b], "projected_px": [106.0, 106.0]}, box)
+    lone = Doubt("ball_detected", c, "one_ray", {"agreeing_views": [a], "detector": "d", "score": 0.9}, box)
+    alone = Doubt("ball_detected", c, "detections_agree", {"agreeing_views": [b], "detector": "d", "score": 0.9}, box)
+    found = [placed, lone, alone]
+    assert system.triangulation.ball3d is not None
+    assert doubt_service.without_unbacked_fixes(system, found) == found  # a ball: every key stays
+    system.triangulation.ball3d = None  # the ball's rule refused the labels' pairs
+    kept = doubt_service.without_unbacked_fixes(system, found)
+    assert kept[1] == lone  # one labelled ray and a detection: its own checks pair them
+    assert kept[0].suggestion is None and kept[0].evidence["no_key"] == "agreeing"
+    assert kept[2].suggestion is None and kept[2].evidence["no_key"] == "detections"
+    names = {f.id: f.name for f in system.frames}
+    assert "No fix key: the 3D ball keeps no ball from the labels of" in doubt_message(kept[0], names)
+    assert "detections alone" in doubt_message(kept[2], names)
+    assert "No fix key" not in doubt_message(lone, names)
+    db_session.rollback()
