@@ -26,8 +26,8 @@ from typing import Any, Optional, Sequence
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.detector_fill import copy, paths, template, yield_figures  # noqa: E402
-from benchmarks.doubts_seeds import V3D, _run, served_with_admin  # noqa: E402
+from benchmarks.detector_fill import copy, paths, template, yield_figures  # noqa: E402  # after the path is set
+from benchmarks.doubts_seeds import V3D, _run, served_with_admin  # noqa: E402  # after the path is set
 
 RIGHT_M, WRONG_M = 0.5, 1.0
 

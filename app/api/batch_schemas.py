@@ -9,7 +9,8 @@ from pydantic import BaseModel, Field
 
 from app.api.pass_schemas import PassFilterIn
 from app.api.schemas import ErrorOut, _In
-from app.services.curation.batches import Stop, Undone
+from app.db.models import ReviewBatch
+from app.services.curation.batches import Stop, Undone, batch_plan
 
 
 class BatchIn(_In):
@@ -88,3 +89,25 @@ class UndoneOut(BaseModel):
 REFUSED: dict[int | str, dict[str, Any]] = {
     409: {"model": ErrorOut, "description": "The batch cannot be accepted (or undone) now: the message names each "
                                             "system that stops it by id, or says the batch's state."}}
+
+
+class BatchAcceptanceOut(BaseModel):
+    """How a batch accepted the system after a random sample (``app.services.curation.batches``): the batch's id, who
+    made it and who accepted it, when, and its zero-acceptance plan in numbers and in words."""
+
+    batch_id: int
+    created_by: str
+    decided_by: Optional[str] = Field(description="Who accepted the batch (its accept's actor).")
+    decided_at: Optional[datetime]
+    confidence: float = Field(description="The plan's confidence (a fraction).")
+    max_wrong_share: float = Field(description="The largest share of wrong systems the plan tolerates (a fraction).")
+    sample: int = Field(description="How many of the batch's systems a person reviewed and accepted (the sample).")
+    systems: int = Field(description="How many systems the batch took (the sample included).")
+    plan: str = Field(description="The plan in words: 'if none of these 59 is wrong, you can be 95 % sure that at "
+                      "most 5 % of the 240 are'.")
+
+    @classmethod
+    def of(cls, batch: ReviewBatch) -> "BatchAcceptanceOut":
+        return cls(batch_id=batch.id, created_by=batch.created_by, decided_by=batch.decided_by,
+                   decided_at=batch.decided_at, confidence=batch.confidence, max_wrong_share=batch.max_wrong_share,
+                   sample=len(batch.sample_ids), systems=len(batch.system_ids), plan=batch_plan(batch))

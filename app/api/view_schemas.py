@@ -16,6 +16,7 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field, computed_field
 
 from app.api.assignment_schemas import AssignmentOut, PresenceOut
 from app.api.audit_schemas import AuditEntryOut
+from app.api.batch_schemas import BatchAcceptanceOut
 from app.api.evidence_schemas import BallEvidenceFields, evidence_fields
 from app.db.models import (
     BallKind,
@@ -27,7 +28,6 @@ from app.db.models import (
     Frame,
     FrameRole,
     OptimisedBox,
-    ReviewBatch,
     ReviewDecision,
     ReviewStatus,
     System,
@@ -36,12 +36,10 @@ from app.db.models import (
     TriangulationStatus,
 )
 from app.db.types import utcnow
-from app.geometry import pitch
 from app.geometry.calibration.result import MIRROR_FLAG
 from app.geometry.doubts import INFO_KINDS, LABEL_KINDS, SUGGESTION_ACTIONS
 from app.geometry.jac import JAC_GAMMAS
 from app.geometry.pair_error import error_above_tau, rule_reference_width_px, scaled_error_px
-from app.services.curation.batches import batch_plan
 from app.services.curation.system_page import SystemPageData, pitch_lines, pitch_lines_key, round_px
 from app.services.curation.versions import frame_etag, system_etag
 from app.services.derivation.doubts import doubt_provenance, suggestion_json
@@ -389,31 +387,6 @@ def pitch_lines_url(frame: Frame) -> Optional[str]:
     return None if key is None else f"/api/frames/{frame.id}/pitch-lines?camera={key}"
 
 
-class PitchClassOut(BaseModel):
-    """One field-line class of the pitch model (SoccerNet's name, trailing space included)."""
-
-    name: str
-    mirror: str = Field(description="The class it becomes when the pitch is turned 180 degrees.")
-    modelled: bool = Field(
-        description="False for 'Goal unknown' and 'Line unknown': valid labels the geometry ignores.")
-
-
-class PitchModelOut(BaseModel):
-    """The pitch model the calibration fits lines to (``app.geometry.pitch``): the classes a field line may
-    carry, in SoccerNet's order, and the pitch's size (metres)."""
-
-    classes: list[PitchClassOut]
-    length_m: float
-    width_m: float
-
-    @classmethod
-    def of_model(cls) -> "PitchModelOut":
-        return cls(classes=[PitchClassOut(name=c, mirror=pitch.MIRROR_CLASSES[c],
-                                          modelled=c not in pitch.UNKNOWN_CLASSES)
-                            for c in pitch.LINE_CLASSES],
-                   length_m=pitch.PITCH_LENGTH_M, width_m=pitch.PITCH_WIDTH_M)
-
-
 class OptimisedBoxOut(BaseModel):
     """The view's optimised box (paper Eq. min_diametre, drawn by ``Settings.optimised_box_method``): by
     default (``exact_ray``) the box of the exact image of the 0.22 m sphere at the 3D ball's depth on the
@@ -536,28 +509,6 @@ class TriangulationOut(BaseModel):
     @property
     def reference_width_px(self) -> Optional[float]:
         return rule_reference_width_px(self.rule)
-
-
-class BatchAcceptanceOut(BaseModel):
-    """How a batch accepted the system after a random sample (``app.services.curation.batches``): the batch's id, who
-    made it and who accepted it, when, and its zero-acceptance plan in numbers and in words."""
-
-    batch_id: int
-    created_by: str
-    decided_by: Optional[str] = Field(description="Who accepted the batch (its accept's actor).")
-    decided_at: Optional[datetime]
-    confidence: float = Field(description="The plan's confidence (a fraction).")
-    max_wrong_share: float = Field(description="The largest share of wrong systems the plan tolerates (a fraction).")
-    sample: int = Field(description="How many of the batch's systems a person reviewed and accepted (the sample).")
-    systems: int = Field(description="How many systems the batch took (the sample included).")
-    plan: str = Field(description="The plan in words: 'if none of these 59 is wrong, you can be 95 % sure that at "
-                      "most 5 % of the 240 are'.")
-
-    @classmethod
-    def of(cls, batch: ReviewBatch) -> "BatchAcceptanceOut":
-        return cls(batch_id=batch.id, created_by=batch.created_by, decided_by=batch.decided_by,
-                   decided_at=batch.decided_at, confidence=batch.confidence, max_wrong_share=batch.max_wrong_share,
-                   sample=len(batch.sample_ids), systems=len(batch.system_ids), plan=batch_plan(batch))
 
 
 class SystemView(BallEvidenceFields):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from app.api.view_schemas import PitchModelOut
+from app.api.pitch_schemas import PitchModelOut
 
 router = APIRouter(prefix="/pitch-model", tags=["pitch"])
 

@@ -140,10 +140,12 @@ def _players_statement() -> sa.Select:
 def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
     """Read the person boxes of each of ``frames`` whose boxes (``Frame.players``) the session has not loaded, in one
     query, as plain rows kept in the session (:data:`VIEW_PLAYERS`, read by
-    ``app.services.calibration.players.frame_players``); frames with theirs loaded are left as they are. Plain rows,
+    ``app.services.calibration.players.frame_players``); frames with theirs loaded, or read so already, are left as
+    they are (an edit reads them before it computes, and a read while it computes would hold a connection). Plain rows,
     not ORM objects: what reads them (the players check of the ball, the detector's check) reads their values only,
     and building a few dozen ORM objects was most of what the boxes cost an edit (``benchmarks/SCALE.md``)."""
-    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded]
+    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded
+              and VIEW_PLAYERS not in sa.inspect(f).info]
     if not wanted:
         return
     found: dict[int, list[tuple[str, str | None, tuple[float, float, float, float]]]] = {f.id: [] for f in wanted}

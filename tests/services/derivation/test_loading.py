@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 from app.core.config import Settings
 from app.db.models import Doubt, System
 from app.services.calibration.players import frame_players
-from app.services.derivation.loading import FRAME_ROWS, load_systems
+from app.services.derivation.loading import FRAME_ROWS, load_systems, load_view_players
 from app.services.transfer.importing import import_soccernet_v3
 
 
@@ -109,3 +109,6 @@ def test_the_person_boxes_of_views_with_predictions_are_loaded_with_them(shared_
         (with_predictions,) = [f for f in system.frames if f.predictions]
         # an edit's recomputation reads them after changing objects: they must be there without a query
         assert sorted(box for _, _, box in frame_players(with_predictions)) == boxes and statements == []
+        # asked again while the edit computes (the detector's check reads the boxes after the ball did): still none
+        load_view_players(session, list(system.frames))
+        assert statements == []
