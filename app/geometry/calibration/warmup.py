@@ -10,7 +10,7 @@ import numpy as np
 
 from app.geometry.calibration.frame import calibrate_frame
 from app.geometry.calibration.grass import foot_world, players_on_grass
-from app.geometry.calibration.players import fit_camera_to_players
+from app.geometry.calibration.players import fit_camera_to_players, pair_players_disagreement
 from app.geometry.calibration.result import CalibrationPrior
 from app.geometry.camera import Camera, look_at_rotation
 from app.geometry.pitch import sample_pitch_polylines
@@ -19,7 +19,8 @@ from app.geometry.pitch import sample_pitch_polylines
 def compile_kernels() -> None:
     """Compile every numba kernel of the calibration now (or load it from numba's on-disk cache):
     one calibration of a synthetic frame, free and with its centre known, with the radial term.
-    For an image build or a warm-up; calibrating does it on first use anyway."""
+    For an image build or a warm-up; calibrating does it on first use anyway. The players' fit and the players'
+    comparison of two cameras (the 3D ball's check) are compiled with them."""
     centre = np.array([0.0, 62.0, -18.0])
     camera = Camera(K=np.array([[900.0, 0.0, 479.5], [0.0, 900.0, 269.5], [0.0, 0.0, 1.0]]),
                     R=look_at_rotation(centre, np.array([-20.0, -4.0, 0.0])), C=centre,
@@ -51,3 +52,6 @@ def _fit_players(anchor: Camera) -> None:
     on_grass = players_on_grass([(anchor, feet(anchor))])
     fit_camera_to_players(feet(view), on_grass, {}, 1920, 1080, [tuple(view.C)])
     fit_camera_to_players(feet(view), on_grass, {}, 1920, 1080)
+    # the ball's players check (:mod:`.pair_players`): compiled here too, or each calibration worker of a fresh
+    # installation's first import compiles it at once
+    pair_players_disagreement(anchor, feet(anchor), (960, 540), view, feet(view), (1920, 1080))

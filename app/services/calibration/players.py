@@ -55,12 +55,45 @@ from app.geometry.jac import JAC_GAMMAS, jac_admitted
 from app.geometry.pitch import MIN_LINE_CLASSES
 from app.services.calibration.admission import admission_args, fields_admitted, is_admitted
 from app.services.calibration.calibrating import apply_calibration
-from app.services.derivation.loading import forget_view_players, view_players
 from app.services.wording.doubt_words import with_sentence
 from app.services.wording.words import player_camera_sentence
 
 #: ``(class, ID or None, (x1, y1, x2, y2) px)``: a player box as the records and the rows give it.
 PlayerRow = tuple[str, "str | None", tuple[float, float, float, float]]
+
+
+#: Where ``app.services.derivation.loading.load_view_players`` keeps a frame's person boxes: a :class:`ViewPlayers` in
+#: the ``info`` of the frame's instance state (it lives and goes with the object, as a loaded relationship would); a
+#: frame whose boxes are written again drops it (:func:`store_players`).
+VIEW_PLAYERS = "v3d.view_players"
+
+
+class ViewPlayers:
+    """One view's person boxes as ``app.services.derivation.loading.load_view_players`` read them: ``rows``
+    ``(class, ID, (x1, y1, x2, y2))`` in id order, and ``feet``, its foot points by player (:func:`frame_feet`), made
+    on the first ask (None until then)."""
+
+    __slots__ = ("rows", "feet")
+
+    def __init__(self, rows: list[PlayerRow]) -> None:
+        self.rows = rows
+        self.feet: dict[PlayerKey, np.ndarray] | None = None
+
+
+def view_players(frame: Frame) -> ViewPlayers | None:
+    """The person boxes ``load_view_players`` read for ``frame`` (None: not read so, or ``Frame.players`` loaded
+    since, which then holds them)."""
+    state = sa.inspect(frame)
+    if "players" not in state.unloaded:
+        return None
+    got: ViewPlayers | None = state.info.get(VIEW_PLAYERS)
+    return got
+
+
+def forget_view_players(frames: Sequence[Frame]) -> None:
+    """Drop what ``load_view_players`` kept of ``frames`` (their boxes were written again)."""
+    for f in frames:
+        sa.inspect(f).info.pop(VIEW_PLAYERS, None)
 
 
 def frame_players(frame: Frame) -> list[PlayerRow]:

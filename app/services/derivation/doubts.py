@@ -193,16 +193,18 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
       vouch for (``"detections"``).
 
     On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
-    (``benchmarks/VOUCH.md``, 2026-11-29 later). The doubt stays with its numbers (its words say why there is no
-    key): a person places the label by eye. A fix placed from one labelled ray with a detection (its own checks pair
-    them), and every fix in a system with a 3D ball, are left as they are."""
+    (``benchmarks/VOUCH.md``, 2026-11-29 later), every one a box filled into a view without a label of a person's.
+    The doubt stays with its numbers (its words say why there is no key): a person places the label by eye. A fix
+    placed from one labelled ray with a detection (its own checks pair them), a snap of a view's own label of a
+    person's (moved off by a slip of the hand: the other views agreeing where it was is what a person expects the
+    key to restore), and every fix in a system with a 3D ball, are left as they are."""
     if system.triangulation is not None and system.triangulation.ball3d is not None:
         return doubts
     labelled = {f.id for f in system.frames if f.ball_label is not None and not f.ball_label.suggested
                 and f.ball_label.centre is not None}
     out = []
     for d in doubts:
-        if d.suggestion and d.suggestion.get("action") in PLACING_ACTIONS:
+        if d.suggestion and d.suggestion.get("action") in PLACING_ACTIONS and d.view_id not in labelled:
             agreeing = [v for v in (d.evidence or {}).get("agreeing_views") or [] if v in labelled]
             why = "agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree" else None
             if why is not None:

@@ -27,6 +27,7 @@ from sqlalchemy.orm.attributes import set_committed_value
 from app.db.models import Doubt, Frame, PlayerBox, Prediction, System, Triangulation, TriangulationPair
 from app.db.models.predictions import ranked_predictions
 from app.db.scope import FRAME_ROWS
+from app.services.calibration.players import VIEW_PLAYERS, ViewPlayers
 
 #: Systems loaded per round of queries (bounded IN lists and memory).
 CHUNK = 500
@@ -111,24 +112,6 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
         _hand_over(f, "predictions", found[f.id])
 
 
-#: Where :func:`load_view_players` keeps a frame's person boxes: a :class:`ViewPlayers` in the ``info`` of the frame's
-#: instance state (it lives and goes with the object, as a loaded relationship would); a frame whose boxes are written
-#: again drops it (``calibration.players.store_players``).
-VIEW_PLAYERS = "v3d.view_players"
-
-
-class ViewPlayers:
-    """One view's person boxes as :func:`load_view_players` read them: ``rows`` ``(class, ID, (x1, y1, x2, y2))`` in
-    id order, and ``feet``, its foot points by player (``app.services.calibration.players.frame_feet``), made on the
-    first ask (None until then)."""
-
-    __slots__ = ("rows", "feet")
-
-    def __init__(self, rows: list[tuple[str, str | None, tuple[float, float, float, float]]]) -> None:
-        self.rows = rows
-        self.feet: dict[Any, Any] | None = None
-
-
 @functools.cache
 def _players_statement() -> sa.Select:
     """The person boxes of the frames ``ids`` (an expanding parameter), their columns as plain rows, in id order."""
@@ -153,22 +136,6 @@ def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
         found[fid].append((cls, ident, (x1, y1, x2, y2)))
     for f in wanted:
         sa.inspect(f).info[VIEW_PLAYERS] = ViewPlayers(found[f.id])
-
-
-def view_players(frame: Frame) -> ViewPlayers | None:
-    """The person boxes :func:`load_view_players` read for ``frame`` (None: not read so, or ``Frame.players``
-    loaded since, which then holds them)."""
-    state = sa.inspect(frame)
-    if "players" not in state.unloaded:
-        return None
-    got: ViewPlayers | None = state.info.get(VIEW_PLAYERS)
-    return got
-
-
-def forget_view_players(frames: Sequence[Frame]) -> None:
-    """Drop what :func:`load_view_players` kept of ``frames`` (their boxes were written again)."""
-    for f in frames:
-        sa.inspect(f).info.pop(VIEW_PLAYERS, None)
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:

@@ -362,6 +362,8 @@ def test_a_box_placed_from_labels_the_ball_keeps_no_ball_from_or_from_detections
     assert system.triangulation.ball3d is not None
     assert doubt_service.without_unbacked_fixes(system, found) == found  # a ball: every key stays
     system.triangulation.ball3d = None  # the ball's rule refused the labels' pairs
+    assert doubt_service.without_unbacked_fixes(system, found) == found  # c's own label snapped back: keys stay
+    next(f for f in system.frames if f.id == c).ball_label = None  # a fill of a view nobody labelled
     kept = doubt_service.without_unbacked_fixes(system, found)
     assert kept[1] == lone  # one labelled ray and a detection: its own checks pair them
     assert kept[0].suggestion is None and kept[0].evidence["no_key"] == "agreeing"
