@@ -183,8 +183,9 @@ def test_system_view_carries_the_ui_contract(client: TestClient, queue: dict[str
     scene = queue["exact"]
     view = client.get(f"/api/systems/{scene.system_id}").json()
     assert view["name"] == "2.png" and view["game"]["id"] == scene.game_id
-    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None, "excluded": False, "batch_id": None,
-                              "reset_reason": None, "calibration": None}  # a system has no calibration decision
+    assert view["review"] == {"status": "pending", "comment": "", "decided_at": None, "excluded": False,
+                              "batch_id": None, "reset_reason": None,
+                              "calibration": None}  # a system has no calibration decision
     assert view["views"][0]["review"]["calibration"] == {"status": "pending", "comment": "", "decided_at": None,
                                                          "reset_reason": None}
     np.testing.assert_allclose(view["ball3d"], BALL, atol=1e-6)
