@@ -1,6 +1,8 @@
 """What a browser test leaves behind when it fails: a Playwright trace of every browser context it opened
-(``test-artifacts/traces/NAME.zip``: the pages' snapshots, screenshots, network and console, to open with
-``playwright show-trace``), and the pages' console errors, uncaught errors and failed requests in the failure's report.
+(``test-artifacts/traces/NAME.zip``: the pages' DOM snapshots before and after each action, network and console, to
+open with ``playwright show-trace``), a screenshot of each page still open when it failed (``NAME-pageN.png``: the
+views' canvases, which a DOM snapshot does not hold), and the pages' console errors, uncaught errors and failed
+requests in the failure's report.
 
 Every context the test makes through its ``browser`` fixture (:class:`RecordedBrowser`) records from its start; the
 trace is written only when the test failed (a context closed by the test itself before its outcome is known writes
@@ -37,6 +39,10 @@ class Recorder:
     def trace_path(self, index: int) -> Path:
         return TRACES / (f"{self.name}.zip" if index == 0 else f"{self.name}-{index + 1}.zip")
 
+    def shot_path(self, context: int, page: int) -> Path:
+        """Where the screenshot of page ``page`` of context ``context`` goes when the test failed."""
+        return TRACES / f"{self.trace_path(context).stem}-page{page + 1}.png"
+
     def scratch(self) -> Path:
         if self._scratch is None:
             self._scratch = Path(tempfile.mkdtemp(prefix="v3d-trace-"))
@@ -51,7 +57,8 @@ class Recorder:
         shown = self.lines[-REPORT_LINES:]
         head = [f"trace{'s' if len(self.contexts) > 1 else ''}: "
                 + ", ".join(str(self.trace_path(i).relative_to(TRACES.parents[1])) for i in range(len(self.contexts)))
-                + " (playwright show-trace FILE)"] if self.contexts and traces else []
+                + " (playwright show-trace FILE), beside each a screenshot of every page it left open (-pageN.png)"]\
+            if self.contexts and traces else []
         if len(self.lines) > len(shown):
             head.append(f"... {len(self.lines) - len(shown)} earlier lines left out")
         return "\n".join(head + (shown or ["the pages logged no console error and no failed request"]))
@@ -80,7 +87,10 @@ class RecordedContext:
         self._index = len(recorder.contexts)
         self.closed = False
         recorder.contexts.append(self)
-        context.tracing.start(screenshots=True, snapshots=True)
+        # DOM snapshots, not the screencast: the screencast's frames cost a browser test about a tenth of its CPU
+        # (three modules run in turn with and without it, benchmarks/TEST_LOOP.md); a failure's last state is
+        # kept by a screenshot of each page still open instead (:meth:`close`)
+        context.tracing.start(screenshots=False, snapshots=True)
         context.on("page", self._watch)
 
     def _watch(self, page: Any) -> None:
@@ -90,6 +100,14 @@ class RecordedContext:
         page.on("requestfailed", lambda r: note(f"request failed: {r.method} {r.url} ({r.failure})"))
         page.on("response", lambda r: note(f"answered {r.status}: {r.request.method} {r.url}") if r.status >= 400
                 else None)
+
+    def _screenshots(self) -> None:
+        """A failed test's last sight of each page still open (the canvases a DOM snapshot does not hold)."""
+        for number, page in enumerate(self._context.pages):
+            try:
+                page.screenshot(path=str(self._recorder.shot_path(self._index, number)), timeout=10_000)
+            except Exception as exc:  # a page that crashed or hung: its trace is still written
+                self._recorder.note(f"no screenshot of page {number + 1}: {exc}")
 
     def close(self, **kwargs: Any) -> None:
         """Stop the trace (written where the test's outcome says), then close the context."""
@@ -104,6 +122,7 @@ class RecordedContext:
                 recorder.pending[self._index] = written
             elif recorder.failed:
                 TRACES.mkdir(parents=True, exist_ok=True)
+                self._screenshots()
                 self._context.tracing.stop(path=str(recorder.trace_path(self._index)))
             else:
                 self._context.tracing.stop()
