@@ -97,7 +97,11 @@ def trace(base: str, token: str, truth: Path) -> dict[str, Any]:
         names = {v["frame_id"]: v.get("name") for v in view["views"]}
         rec: dict[str, Any] = {"id": sid, "match": view["game"]["match"], "name": view["name"],
                                "corruption": corrupt.get((view["game"]["match"], view["name"]), ""),
-                               "views": len(view["views"]), "before": _state(view, balls), "fixes": []}
+                               "views": len(view["views"]), "before": _state(view, balls), "fixes": [],
+                               # each view's camera facts (its sigmas, its part), to read a fix against them
+                               "view_facts": [{k: x for k, x in v.items() if k in ("name", "frame_id", "has_ball")
+                                               or "sigma" in k or "part" in k or "class" in k}
+                                              for v in view["views"]]}
         for d in view.get("doubts", []):
             status = _apply(c, d)
             if status is None:
@@ -106,7 +110,8 @@ def trace(base: str, token: str, truth: Path) -> dict[str, Any]:
             sug = d.get("suggestion") or {}
             rec["fixes"].append({"kind": d["kind"], "code": d.get("code"), "action": sug.get("action"),
                                  "view": names.get(d.get("frame_id")), "status": status,
-                                 "message": d.get("message"), "after": _state(after, balls)})
+                                 "message": d.get("message"), "evidence": d.get("evidence"),
+                                 "after": _state(after, balls)})
         rec["after"] = rec["fixes"][-1]["after"] if rec["fixes"] else rec["before"]
         systems.append(rec)
 

@@ -47,6 +47,13 @@ def _no_key(ev, n) -> str:
         return (f" No fix key: the 3D ball keeps no ball from the labels of {_list(ev.get('agreeing_views'), n)} "
                 "(its rule refuses their agreement), so a box placed where they agree would make a ball nothing else "
                 "backs; place the label by eye where the ball is.")
+    if ev.get("no_key") == "one_ray":
+        ray = _list((ev.get("agreeing_views") or [])[:1], n) or "the labelled view"
+        ball = ev.get("ball3d") or [None, None, None]
+        up = _num(-ball[2] if isinstance(ball[2], (int, float)) else None, 1, "an unknown number of")
+        return (f" No fix key: only this box says where along {ray}'s ray the ball is ({up} m above the grass, where "
+                "no third view sees it), and a false box on that ray at a ball's size would say the same; place the "
+                "label by eye where the ball is.")
     if ev.get("no_key") == "detections":
         return (" No fix key: no label a person placed takes part, and boxes placed from detections alone would make "
                 "a 3D ball of the detector's boxes alone; place the label by eye where the ball is.")
