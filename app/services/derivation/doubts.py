@@ -201,6 +201,7 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
       where the labelled ray meets the grass, the one spot of the ray a ball on the ground can be, which a random
       box rarely hits (``"one_ray"``).
 
+    Such a doubt keeps its numbers, the box the key would have placed among them (``evidence["box"]``, px).
     On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
     (``benchmarks/VOUCH.md``, 2026-11-29 later and evening), every one a box filled into a view without a label of a
     person's. The doubt stays with its numbers (its words say why there is no key): a person places the label by
@@ -219,7 +220,9 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
             why = ("agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree"
                    else "one_ray" if d.code == "one_ray" and _depth_from_box_alone(d.evidence or {}) else None)
             if why is not None:
-                d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, "no_key": why})
+                # the box stays among its numbers: where the key would have placed it, for a person to judge by eye
+                box = {"box": d.suggestion["box"]} if d.suggestion.get("box") is not None else {}
+                d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, **box, "no_key": why})
         out.append(d)
     return out
 
