@@ -229,7 +229,18 @@ def _detected(ev, v, n, code: str = "consensus"):
             else f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from {where} {others} put it")
     return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} {near}, at "
             f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{_DETECTED_RULE[code]}{margin}; "
-            f"s places its box, to be confirmed{_once_confirmed(ev)}.")
+            f"{_placing(ev)}.")
+
+
+def _placing(ev) -> str:
+    """How a detector's box becomes the label: its fix key (s, then a person's confirmation), or, where the box gets
+    no key (``evidence["no_key"]``, said after the sentence), where the box lies for a person to judge by eye."""
+    if not ev.get("no_key"):
+        return f"s places its box, to be confirmed{_once_confirmed(ev)}"
+    box = ev.get("box")
+    if not box or len(box) != 4:
+        return "its box is not placed by a key"
+    return f"its box lies at x {_num(box[0])}-{_num(box[2])}, y {_num(box[1])}-{_num(box[3])} px"
 
 
 def _detection_off(ev, v, n):

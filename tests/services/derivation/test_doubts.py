@@ -419,6 +419,7 @@ def test_a_box_on_a_lone_labelled_ray_with_its_ball_in_the_air_gets_no_fix_key_o
     assert np.linalg.norm(placed - false) < 0.5 and np.linalg.norm(placed - air) > 3.0  # a wrong ball, confirmed
     assert d.suggestion is None and d.evidence["no_key"] == "one_ray"
     assert "No fix key: only this box says where along 1.png's ray the ball is (3.9 m above the grass" in d.message
+    assert "s places its box" not in d.message and "its box lies at x " in d.message  # no key to press
     assert d.evidence["score"] == 0.9 and d.evidence["error_px_1920"] is not None  # the doubt keeps its numbers
 
     d, placed = _one_ray_doubt(db_session, db_settings, game, "2.png", BALL, BALL)
