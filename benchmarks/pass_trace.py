@@ -6,7 +6,8 @@ under ``--made-dir``): the cached import of ``benchmarks/detector_fill.py`` (``-
 this tree with the set's predictions imported (source ``detector``), served; then the pass exactly as
 ``../shared/tools/detector_fill_eval.py`` makes it (every label doubt's one-key fix once, ``near_duplicate_view``
 aside, each placement confirmed as a person would), system by system, reading the system after each fix: the 3D
-ball's distance to the truth and its tier (``ball_evidence``) before and after. Then, in process, ``v3d stats
+ball's distance to the truth and its tier (``ball_evidence``) before and after, beside the fix's doubt's evidence (its
+code, score, agreeing views, the ball it places) to tabulate the fixes by it. Then, in process, ``v3d stats
 yield`` of the copy after the pass (:func:`benchmarks.detector_fill.yield_figures`: the paper's rules and v3d's on the
 same labels), and of a copy as imported with the predictions (before the pass).
 
@@ -97,11 +98,7 @@ def trace(base: str, token: str, truth: Path) -> dict[str, Any]:
         names = {v["frame_id"]: v.get("name") for v in view["views"]}
         rec: dict[str, Any] = {"id": sid, "match": view["game"]["match"], "name": view["name"],
                                "corruption": corrupt.get((view["game"]["match"], view["name"]), ""),
-                               "views": len(view["views"]), "before": _state(view, balls), "fixes": [],
-                               # each view's camera facts (its sigmas, its part), to read a fix against them
-                               "view_facts": [{k: x for k, x in v.items() if k in ("name", "frame_id", "has_ball")
-                                               or "sigma" in k or "part" in k or "class" in k}
-                                              for v in view["views"]]}
+                               "views": len(view["views"]), "before": _state(view, balls), "fixes": []}
         for d in view.get("doubts", []):
             status = _apply(c, d)
             if status is None:
