@@ -6,7 +6,8 @@ under ``--made-dir``): the cached import of ``benchmarks/detector_fill.py`` (``-
 this tree with the set's predictions imported (source ``detector``), served; then the pass exactly as
 ``../shared/tools/detector_fill_eval.py`` makes it (every label doubt's one-key fix once, ``near_duplicate_view``
 aside, each placement confirmed as a person would), system by system, reading the system after each fix: the 3D
-ball's distance to the truth and its tier (``ball_evidence``) before and after. Then, in process, ``v3d stats
+ball's distance to the truth and its tier (``ball_evidence``) before and after, beside the fix's doubt's evidence (its
+code, score, agreeing views, the ball it places) to tabulate the fixes by it. Then, in process, ``v3d stats
 yield`` of the copy after the pass (:func:`benchmarks.detector_fill.yield_figures`: the paper's rules and v3d's on the
 same labels), and of a copy as imported with the predictions (before the pass).
 
@@ -106,7 +107,8 @@ def trace(base: str, token: str, truth: Path) -> dict[str, Any]:
             sug = d.get("suggestion") or {}
             rec["fixes"].append({"kind": d["kind"], "code": d.get("code"), "action": sug.get("action"),
                                  "view": names.get(d.get("frame_id")), "status": status,
-                                 "message": d.get("message"), "after": _state(after, balls)})
+                                 "message": d.get("message"), "evidence": d.get("evidence"),
+                                 "after": _state(after, balls)})
         rec["after"] = rec["fixes"][-1]["after"] if rec["fixes"] else rec["before"]
         systems.append(rec)
 

@@ -28,6 +28,7 @@ from app.geometry.consensus import Consensus
 from app.geometry.doubts import DoubtSettings, DoubtView, judge_system, label_severity
 from app.geometry.doubts.detections import Detection, check_detections
 from app.geometry.doubts.judge import consensus_without, consensuses_without
+from app.geometry.doubts.pairings import ON_GRASS_M
 from app.geometry.pair_error import REFERENCE_WIDTH_PX, scaled_error_px
 from app.geometry.pitch import PLAY_VOLUME
 from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
@@ -190,14 +191,24 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
       ``"agreeing"``);
     * placed from detections alone (code ``detections_agree``: no labelled view takes part): two such boxes,
       confirmed, make a ball of the detector's boxes alone, which its confirmations of those same boxes would then
-      vouch for (``"detections"``).
+      vouch for (``"detections"``);
+    * placed from one labelled ray and one detection (code ``one_ray``) whose ball lies in the air (more than
+      :data:`app.geometry.doubts.pairings.ON_GRASS_M` above the grass) where no third view sees it (its
+      ``agreeing_views`` are the ray's view alone): the box alone then says where along the ray the ball is, over a
+      stretch of metres a ball in the air may occupy, and a false box that lies on the ray's band at a ball's size
+      says it as well; confirmed, the two views make the ball with nothing to check its depth (the ball's rule
+      vouches for a depth only by a third view). On the grass the ground is that check: the pairing puts the ball
+      where the labelled ray meets the grass, the one spot of the ray a ball on the ground can be, which a random
+      box rarely hits (``"one_ray"``).
 
+    Such a doubt keeps its numbers, the box the key would have placed among them (``evidence["box"]``, px).
     On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
-    (``benchmarks/VOUCH.md``, 2026-11-29 later), every one a box filled into a view without a label of a person's.
-    The doubt stays with its numbers (its words say why there is no key): a person places the label by eye. A fix
-    placed from one labelled ray with a detection (its own checks pair them), a snap of a view's own label of a
-    person's (moved off by a slip of the hand: the other views agreeing where it was is what a person expects the
-    key to restore), and every fix in a system with a 3D ball, are left as they are."""
+    (``benchmarks/VOUCH.md``, 2026-11-29 later and evening), every one a box filled into a view without a label of a
+    person's. The doubt stays with its numbers (its words say why there is no key): a person places the label by
+    eye. A fix placed from one labelled ray with a detection that a third view confirms or whose ball is on the
+    grass, a snap of a view's own label of a person's (moved off by a slip of the hand: the other views agreeing
+    where it was is what a person expects the key to restore), and every fix in a system with a 3D ball (whose rule
+    checks the box against the views it already pairs), are left as they are."""
     if system.triangulation is not None and system.triangulation.ball3d is not None:
         return doubts
     labelled = {f.id for f in system.frames if f.ball_label is not None and not f.ball_label.suggested
@@ -206,11 +217,26 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
     for d in doubts:
         if d.suggestion and d.suggestion.get("action") in PLACING_ACTIONS and d.view_id not in labelled:
             agreeing = [v for v in (d.evidence or {}).get("agreeing_views") or [] if v in labelled]
-            why = "agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree" else None
+            why = ("agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree"
+                   else "one_ray" if d.code == "one_ray" and _depth_from_box_alone(d.evidence or {}) else None)
             if why is not None:
-                d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, "no_key": why})
+                # the box stays among its numbers: where the key would have placed it, for a person to judge by eye
+                box = {"box": d.suggestion["box"]} if d.suggestion.get("box") is not None else {}
+                d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, **box, "no_key": why})
         out.append(d)
     return out
+
+
+def _depth_from_box_alone(evidence: dict[str, Any]) -> bool:
+    """Whether a ``one_ray`` fill's box alone fixes where along the labelled ray its ball lies: no view but the ray's
+    confirms it (``evidence["agreeing_views"]``: the ray's view and each third view that sees the ball) and its ball
+    (``evidence["ball3d"]``, world metres, SoccerNet z down) lies more than
+    :data:`app.geometry.doubts.pairings.ON_GRASS_M` above the grass, the bound the pairing's own checks call "on the
+    grass" (:func:`app.geometry.doubts.pairings._told_from_players`). False where the evidence lacks the ball."""
+    ball = evidence.get("ball3d")
+    if not ball or len(ball) != 3:
+        return False
+    return len(evidence.get("agreeing_views") or []) <= 1 and -float(ball[2]) > ON_GRASS_M
 
 
 #: ``after_confirming(frame, centre, box)``: how far (px of the view) a label centred at ``centre`` (its box ``box``,

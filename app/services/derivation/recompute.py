@@ -89,7 +89,7 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 8 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
+DERIVED_VERSION = 9 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
 # weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
@@ -97,7 +97,8 @@ DERIVED_VERSION = 8 + RULE_VERSION  # 2: pairs outside the play volume dropped, 
 # players-placed view's label far off the agreed ball is accused; 6: the rule by evidence is the default; 7: under it
 # a view below admission that fits most of its own lines takes part, an undetermined camera makes no pair, and a pair
 # whose cameras disagree on their players is left out; 8: the doubts' fills count such a view as the ball does (a box
-# it would make a ball with is no weak fill), and a box placed from labels the ball keeps no ball from gets no fix key
+# it would make a ball with is no weak fill), and a box placed from labels the ball keeps no ball from gets no fix key;
+# 9: nor a box placed from one labelled ray whose ball is in the air where no third view sees it
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,

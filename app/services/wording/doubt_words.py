@@ -47,6 +47,13 @@ def _no_key(ev, n) -> str:
         return (f" No fix key: the 3D ball keeps no ball from the labels of {_list(ev.get('agreeing_views'), n)} "
                 "(its rule refuses their agreement), so a box placed where they agree would make a ball nothing else "
                 "backs; place the label by eye where the ball is.")
+    if ev.get("no_key") == "one_ray":
+        ray = _list((ev.get("agreeing_views") or [])[:1], n) or "the labelled view"
+        ball = ev.get("ball3d") or [None, None, None]
+        up = _num(-ball[2] if isinstance(ball[2], (int, float)) else None, 1, "an unknown number of")
+        return (f" No fix key: only this box says where along {ray}'s ray the ball is ({up} m above the grass, where "
+                "no third view sees it), and a false box on that ray at a ball's size would say the same; place the "
+                "label by eye where the ball is.")
     if ev.get("no_key") == "detections":
         return (" No fix key: no label a person placed takes part, and boxes placed from detections alone would make "
                 "a 3D ball of the detector's boxes alone; place the label by eye where the ball is.")
@@ -222,7 +229,18 @@ def _detected(ev, v, n, code: str = "consensus"):
             else f"{_num(ev.get('error_px_1920'), 1)} px (at 1920 width) from {where} {others} put it")
     return (f"A detector ({ev.get('detector')}, score {_num(ev.get('score'), 2)}) found the ball in {v} {near}, at "
             f"{_num(100 * (ev.get('size_ratio') or math.nan))} % of a ball's size there{_DETECTED_RULE[code]}{margin}; "
-            f"s places its box, to be confirmed{_once_confirmed(ev)}.")
+            f"{_placing(ev)}.")
+
+
+def _placing(ev) -> str:
+    """How a detector's box becomes the label: its fix key (s, then a person's confirmation), or, where the box gets
+    no key (``evidence["no_key"]``, said after the sentence), where the box lies for a person to judge by eye."""
+    if not ev.get("no_key"):
+        return f"s places its box, to be confirmed{_once_confirmed(ev)}"
+    box = ev.get("box")
+    if not box or len(box) != 4:
+        return "its box is not placed by a key"
+    return f"its box lies at x {_num(box[0])}-{_num(box[2])}, y {_num(box[1])}-{_num(box[3])} px"
 
 
 def _detection_off(ev, v, n):

@@ -26,7 +26,7 @@ def _fills(shared_dir: Path, tmp_path: Path, factory: Any, game: Path) -> tuple[
         fills: dict[str, Any] = {}
         for d in doubts:
             fills.setdefault(frames[d.frame_id].name, []).append(
-                (d.kind, d.evidence["code"], (d.suggestion or {}).get("box")))
+                (d.kind, d.evidence["code"], (d.suggestion or {}).get("box") or d.evidence.get("box")))
     return fills, centres
 
 
@@ -116,6 +116,8 @@ def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir
                                    .order_by(Doubt.id)).all()
         said = {}
         for d in detected:  # one per system: confirming a box changes what its system's other doubts say
+            if d.suggestion is None:  # no fix key (without_unbacked_fixes): nothing placed to confirm
+                continue
             said.setdefault(frames[d.frame_id].system_id, (d.frame_id, d.suggestion["box"], d.evidence))
         assert len(said) >= 8 and any("from the 3D ball" in d.message for d in detected)
         for frame_id, box, evidence in said.values():

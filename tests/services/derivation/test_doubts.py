@@ -358,7 +358,11 @@ def test_a_box_placed_from_labels_the_ball_keeps_no_ball_from_or_from_detections
     placed = Doubt("ball_missing", c, "consensus", {"agreeing_views": [a, b], "projected_px": [106.0, 106.0]}, box)
     lone = Doubt("ball_detected", c, "one_ray", {"agreeing_views": [a], "detector": "d", "score": 0.9}, box)
     alone = Doubt("ball_detected", c, "detections_agree", {"agreeing_views": [b], "detector": "d", "score": 0.9}, box)
-    found = [placed, lone, alone]
+    up = {"agreeing_views": [a], "detector": "d", "score": 0.9, "ball3d": [6.0, 4.0, -3.0]}
+    in_air = Doubt("ball_detected", c, "one_ray", up, box)
+    seen = Doubt("ball_detected", c, "one_ray", {**up, "agreeing_views": [a, -1]}, box)  # a third view's detection
+    grass = Doubt("ball_detected", c, "one_ray", {**up, "ball3d": [6.0, 4.0, -0.11]}, box)
+    found = [placed, lone, alone, in_air, seen, grass]
     assert system.triangulation.ball3d is not None
     assert doubt_service.without_unbacked_fixes(system, found) == found  # a ball: every key stays
     system.triangulation.ball3d = None  # the ball's rule refused the labels' pairs
@@ -368,8 +372,57 @@ def test_a_box_placed_from_labels_the_ball_keeps_no_ball_from_or_from_detections
     assert kept[1] == lone  # one labelled ray and a detection: its own checks pair them
     assert kept[0].suggestion is None and kept[0].evidence["no_key"] == "agreeing"
     assert kept[2].suggestion is None and kept[2].evidence["no_key"] == "detections"
+    assert kept[3].suggestion is None and kept[3].evidence["no_key"] == "one_ray"  # the box alone sets its depth
+    assert kept[4:] == [seen, grass]  # a third view sees it; the grass places it
     names = {f.id: f.name for f in system.frames}
     assert "No fix key: the 3D ball keeps no ball from the labels of" in doubt_message(kept[0], names)
     assert "detections alone" in doubt_message(kept[2], names)
     assert "No fix key" not in doubt_message(lone, names)
     db_session.rollback()
+
+
+def _one_ray_doubt(db_session: Session, db_settings: Settings, game: object, name: str, ball: np.ndarray,
+                   boxed: np.ndarray) -> tuple[object, np.ndarray]:
+    """A three-view system of the true ``ball`` (world metres, z down) labelled in its first view only, whose
+    detector found nothing in the second view and one box in the third: a ball's silhouette at ``boxed``. Returns
+    that third view's doubt once recomputed, and the ball its pairing places."""
+    from app.db.models import Prediction
+    from app.services.derivation.recompute import recompute_system
+
+    scene = make_system(db_session, db_settings, game, name, ball=ball, labelled=(True, False, False))
+    x1, y1, x2, y2 = (float(v) for v in sphere_image_box(scene.cameras[2], boxed, 0.11))
+    db_session.add(Prediction(frame_id=scene.frame_ids[2], source="det", score=0.9, x1=x1, y1=y1, x2=x2, y2=y2))
+    db_session.flush()
+    system = _stored(db_session, scene.system_id)
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    system = _stored(db_session, scene.system_id)
+    assert system.triangulation.ball3d is None  # one labelled view
+    (d,) = [d for d in system.doubts if d.frame_id == scene.frame_ids[2] and d.kind == "ball_detected"]
+    assert d.evidence["code"] == "one_ray" and d.evidence["agreeing_views"] == [scene.frame_ids[0]]
+    return d, np.asarray(d.evidence["ball3d"], float)
+
+
+def test_a_box_on_a_lone_labelled_ray_with_its_ball_in_the_air_gets_no_fix_key_on_the_grass_it_keeps_it(
+        db_session: Session, db_settings: Settings) -> None:
+    """Known truth: a ball 3 m up. A false box in the third view, a ball's size where it lies, on the labelled
+    view's ray 4 m nearer that camera, meets the ray as well as the ball's own box would: two views cannot tell
+    them apart, so the box keeps its doubt and numbers but no fix key (its words say why). A box whose ball lies
+    on the grass, where the labelled ray meets it, keeps its key."""
+    air = np.array([6.0, 4.0, -3.0])
+    centre = np.array([0.0, 58.0, -16.0])  # the factory's first camera
+    along = (air - centre) / np.linalg.norm(air - centre)
+    false = air - 4.0 * along
+    assert -false[2] > 3.0  # still in the air, and 4 m from the ball
+    game = make_game(db_session)
+    d, placed = _one_ray_doubt(db_session, db_settings, game, "1.png", air, false)
+    assert np.linalg.norm(placed - false) < 0.5 and np.linalg.norm(placed - air) > 3.0  # a wrong ball, confirmed
+    assert d.suggestion is None and d.evidence["no_key"] == "one_ray"
+    assert "No fix key: only this box says where along 1.png's ray the ball is (3.9 m above the grass" in d.message
+    assert "s places its box" not in d.message and "its box lies at x " in d.message  # no key to press
+    assert d.evidence["score"] == 0.9 and d.evidence["error_px_1920"] is not None  # the doubt keeps its numbers
+
+    d, placed = _one_ray_doubt(db_session, db_settings, game, "2.png", BALL, BALL)
+    assert np.linalg.norm(placed - BALL) < 0.3
+    assert d.suggestion is not None and d.suggestion["action"] == "snap_box" and "no_key" not in d.evidence
+    assert "No fix key" not in d.message
