@@ -351,7 +351,7 @@ class Camera:
         edit (``app.geometry.spread.projection_jacobian``).
 
         Raises:
-            ValueError: ``points_world`` not (N, 3) (numpy's broadcasting message).
+            ValueError, IndexError: ``points_world`` not (N, 3) (numpy's own message: no check of its own).
         """
         Xc = (points_world - self.C) @ self.R.T
         z = Xc[:, 2]
