@@ -17,6 +17,9 @@ that difference is at least a tenth of a served ball edit's server CPU (``benchm
 * ``lean-players``: the views' person boxes read as plain rows and each view's foot points made once per edit
   (``loading.load_view_players``, ``calibration.players.frame_feet``); off: the boxes loaded as ORM objects
   (``Frame.players``) and the foot points made on every ask.
+* ``jacobian``: the projection's Jacobian (``spread.projection_jacobian``, sixteen an edit of a 4-view system under the
+  rule by evidence) from the offsets made once per step and ``Camera.project_in_front``; off: the six points stacked
+  one by one and projected by ``Camera.project`` (the same numbers, ``tests/geometry/test_spread.py``).
 
 Usage (from the checkout)::
 
@@ -33,6 +36,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 sys.path.insert(0, ".")
+import numpy as np
 import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm.attributes import set_committed_value
@@ -40,6 +44,7 @@ from sqlalchemy.orm.attributes import set_committed_value
 from app.core.config import Settings
 from app.db.models import Frame, PlayerBox
 from app.db.session import make_engine, make_session_factory
+from app.geometry import evidence, spread
 from app.geometry.camera import Camera
 from app.geometry.triangulation import PairGeometryMemo
 from app.services.calibration.players import feet_of, frame_players
@@ -132,9 +137,31 @@ def lean_players_off() -> Iterator[None]:
         loading.load_view_players, writing.load_view_players, doubts.load_view_players, ball.frame_feet = saved  # type: ignore[assignment]  # the patch undone
 
 
+def _stacked_jacobian(o: Any, point_world: Any, step_m: float = 1e-3) -> Any:
+    """``spread.projection_jacobian`` as first written: each offset point made alone, the six stacked and projected
+    by ``Camera.project``."""
+    X = np.asarray(point_world, float).reshape(3)
+    k = spread.REFERENCE_WIDTH_PX / o.image_width
+    uv, front = o.camera.project(np.stack([X + d for d in np.vstack([np.eye(3), -np.eye(3)]) * step_m]))
+    if not bool(np.all(front)):
+        return None
+    return np.asarray((uv[:3] - uv[3:]).T * k / (2 * step_m), float)
+
+
+@contextlib.contextmanager
+def jacobian_off() -> Iterator[None]:
+    """The Jacobian's points stacked one by one and projected by ``Camera.project``."""
+    saved = spread.projection_jacobian, evidence.projection_jacobian
+    spread.projection_jacobian = evidence.projection_jacobian = _stacked_jacobian  # type: ignore[assignment]  # patched for the run
+    try:
+        yield
+    finally:
+        spread.projection_jacobian, evidence.projection_jacobian = saved  # type: ignore[assignment]  # the patch undone
+
+
 MECHANISMS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "cameras": cameras_off, "players": players_off, "only-changed": only_changed_off,
-    "answer-from-edit": answer_from_edit_off, "lean-players": lean_players_off}
+    "answer-from-edit": answer_from_edit_off, "lean-players": lean_players_off, "jacobian": jacobian_off}
 
 
 def main() -> None:

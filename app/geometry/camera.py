@@ -344,6 +344,24 @@ class Camera:
         uv = xy @ self.K[:2, :2].T + self.K[:2, 2]
         return uv, in_front
 
+    def project_in_front(self, points_world: np.ndarray) -> np.ndarray | None:
+        """:meth:`project` (with distortion) of world points (N, 3) metres all in front of the camera: their (N, 2)
+        pixels, the same numbers :meth:`project` gives, or None when any lies at a depth below :data:`MIN_DEPTH_M`.
+        Without :meth:`project`'s shape checks and NaN handling, for the few points a Jacobian projects many times an
+        edit (``app.geometry.spread.projection_jacobian``).
+
+        Raises:
+            ValueError, IndexError: ``points_world`` not (N, 3) (numpy's own message: no check of its own).
+        """
+        Xc = (points_world - self.C) @ self.R.T
+        z = Xc[:, 2]
+        if not (z > MIN_DEPTH_M).all():
+            return None
+        xy = Xc[:, :2] / z[:, None]  # every divisor in front: what project's divide by np.where(in_front, z, nan) gives
+        if self.has_distortion:
+            xy = self.distort(xy)
+        return xy @ self.K[:2, :2].T + self.K[:2, 2]
+
     def normalise_pixels(self, uv: np.ndarray, undistort: bool = True) -> np.ndarray:
         """Pixels (N, 2) -> undistorted normalised coordinates (N, 2) (``K^-1`` then undistortion).
 

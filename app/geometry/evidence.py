@@ -113,6 +113,12 @@ def kept_pairs_sigma_m(observations: Sequence[BallObservation], pairs: Sequence[
     return position_sigma_m(views, ball, sigma_px_1920) if views else None
 
 
+def _squared_distance(r: np.ndarray, info: np.ndarray) -> float:
+    """``r^T I r``: the squared distance (no unit) of an offset ``r`` (3,) metres in the metric of an information
+    matrix ``info`` (3, 3), 1/m^2."""
+    return float(r @ info @ r)
+
+
 def _fixes_point(info: np.ndarray) -> bool:
     eig = np.linalg.eigvalsh(info)
     return bool(eig[-1] > 0 and eig[0] > _SINGULAR_EPS * eig[-1])
@@ -174,8 +180,7 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
             break
         weighted = np.sum([infos[k] @ np.asarray(pairs[k].point, float) for k in infos], axis=0)
         ball = np.linalg.solve(total, weighted)
-        d2 = {k: float((np.asarray(pairs[k].point) - ball) @ infos[k] @ (np.asarray(pairs[k].point) - ball))
-              for k in infos}
+        d2 = {k: _squared_distance(np.asarray(pairs[k].point) - ball, infos[k]) for k in infos}
         worst = max(d2, key=lambda k: d2[k])
         if d2[worst] <= GATE_CHI2 or len(infos) == 1:
             break

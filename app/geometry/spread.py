@@ -2,6 +2,7 @@
 SoccerNet, metres, z down; pixels at 1920 width)."""
 from __future__ import annotations
 
+import functools
 from typing import Hashable, Mapping, Sequence
 
 import numpy as np
@@ -42,13 +43,23 @@ def position_covariance(observations: Sequence[BallObservation], point_world: np
     return np.asarray(np.linalg.inv(info), float)
 
 
+@functools.lru_cache(maxsize=8)
+def _steps(step_m: float) -> np.ndarray:
+    """(6, 3) the central differences' offsets of ``step_m`` metres (+x, +y, +z, -x, -y, -z), made once per step
+    (read-only)."""
+    steps = np.vstack([np.eye(3), -np.eye(3)]) * step_m
+    steps.setflags(write=False)
+    return steps
+
+
 def projection_jacobian(o: BallObservation, point_world: np.ndarray, step_m: float = 1e-3) -> np.ndarray | None:
     """The Jacobian (2, 3) of ``o``'s camera's projection at ``point_world`` ((3,) world metres), px at 1920 width
     per metre, by central differences of ``step_m`` (distortion included); None where the point lies behind it."""
     X = np.asarray(point_world, float).reshape(3)
     k = REFERENCE_WIDTH_PX / o.image_width
-    uv, front = o.camera.project(np.stack([X + d for d in np.vstack([np.eye(3), -np.eye(3)]) * step_m]))
-    if not bool(np.all(front)):
+    # the six points X + d, each sum the one a point at a time gives (an edit asks a dozen of these Jacobians)
+    uv = o.camera.project_in_front(X + _steps(step_m))
+    if uv is None:
         return None
     return np.asarray((uv[:3] - uv[3:]).T * k / (2 * step_m), float)
 

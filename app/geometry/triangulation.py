@@ -93,7 +93,8 @@ class BallObservation:
 
     def __post_init__(self) -> None:
         p = np.array(self.point_px, dtype=float).reshape(-1)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
+        # both coordinates checked as Python floats: a recomputation makes a few dozen observations
+        if p.shape != (2,) or not (math.isfinite(p[0]) and math.isfinite(p[1])):
             raise ValueError(f"BallObservation.point_px must be 2 finite numbers, got {self.point_px!r}")
         if not isinstance(self.camera, Camera):
             raise ValueError(f"BallObservation.camera must be a Camera, got {type(self.camera).__name__}")

@@ -34,8 +34,9 @@ def foot_pixel(box: Sequence[float], width: int, height: int, border_px: float =
     """The foot point of a player's box ``(x1, y1, x2, y2)`` (px): the bottom centre, or None when the box reaches
     within ``border_px`` of the bottom, left or right edge of a ``width`` x ``height`` image (the player is cut off:
     its feet, or half of it, which moves the centre)."""
-    x1, y1, x2, y2 = (float(v) for v in box)
-    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)) or y2 <= y1:
+    x1, y1, x2, y2 = map(float, box)
+    # each finite, written out: a recomputation reads every player box of its views (a few dozen an edit)
+    if not (math.isfinite(x1) and math.isfinite(y1) and math.isfinite(x2) and math.isfinite(y2)) or y2 <= y1:
         return None
     if y2 >= height - 1 - border_px or x1 <= border_px or x2 >= width - 1 - border_px:
         return None

@@ -30,6 +30,7 @@ from app.geometry.ball_evidence import (
 from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.camera import Camera
 from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
+from app.geometry.doubts.detections import Detection
 from app.geometry.evidence import judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import distance_to_play_volume, within_play_volume
@@ -172,7 +173,8 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
 
 def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_pairs: Sequence[tuple[int, int]],
                sigma_m: float | None, cameras: Mapping[int, Camera], settings: Settings,
-               players: PairPlayersMemo | None = None, pair_error_tau: float | None = None) -> BallFacts:
+               players: PairPlayersMemo | None = None, pair_error_tau: float | None = None,
+               detections: dict[int, list[Detection]] | None = None) -> BallFacts:
     """The evidence behind ``system``'s 3D ball ``ball`` ((3,) world metres, None without one; made of the frame id
     pairs ``kept_pairs``; its sigma ``sigma_m``, metres), what :func:`app.geometry.ball_evidence.ball_evidence`
     reads: the views of its kept pairs (named ``V1``, ``V2`` ... by their place in the system), each with whether an
@@ -184,13 +186,14 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
     written); how many kept pairs' cameras agree on their players (:func:`players_disagreement` at most
     ``LINES_CONTRADICTED_SIGMA``; counted only where the detector confirms every label, 0 elsewhere); the sigma;
     ``pair_error_tau``: its kept pairs' largest error over tau. ``cameras``: frame id -> its camera; ``players``: the
-    players' memo (None: the process's)."""
+    players' memo (None: the process's); ``detections``: the system's ``stored_detections``, when read already."""
     if ball is None:
         return BallFacts(has_ball=False)
     point = np.asarray(ball, dtype=float)
     used = {v for pair in kept_pairs for v in pair}
     names = {f.id: f"V{i + 1}" for i, f in enumerate(system.frames)}
-    detections = stored_detections(system, settings.max_predictions_per_frame)
+    if detections is None:
+        detections = stored_detections(system, settings.max_predictions_per_frame)
     views, others, labelled = [], [], []
     centres = [cameras[fid].C for fid in used if fid in cameras]
     for f in system.frames:

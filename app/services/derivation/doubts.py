@@ -143,18 +143,21 @@ def fitted_frames(system: System) -> set[int]:
 def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera] | None = None,
                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
                   weighed: WeighedViews | None = None,
-                  after_confirming: ConfirmedError | None = None) -> list[Doubt]:
+                  after_confirming: ConfirmedError | None = None,
+                  detections: dict[int, list[Detection]] | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
-    with its triangulation; ``weighed``: its :func:`weighed_views`, when made already) and replace its stored doubts
-    and counts. ``after_confirming(frame, centre)``: the recomputation's error (px of the view) of a label centred
-    at ``centre`` (2,) px once a person confirmed it; given, a detector's box and a placement waiting for its
-    confirmation say that number (:func:`with_confirmed_error`), the one the view shows once confirmed. Changes the
-    session only; the caller commits (with the edit that caused it)."""
+    with its triangulation; ``weighed``: its :func:`weighed_views`, when made already; ``detections``: its
+    :func:`stored_detections`, when read already) and replace its stored doubts and counts.
+    ``after_confirming(frame, centre)``: the recomputation's error (px of the view) of a label centred at ``centre``
+    (2,) px once a person confirmed it; given, a detector's box and a placement waiting for its confirmation say that
+    number (:func:`with_confirmed_error`), the one the view shows once confirmed. Changes the session only; the caller
+    commits (with the edit that caused it)."""
     weighed = weighed or weighed_views(system, settings, cameras)
     judged = doubt_settings(settings, kind_of(system).weighs_calibrations)
     found = judge_system(weighed.views, judged, geometry, weighed.weighed)
     found = kind_of(system).judge_doubts(system, found, cameras)
-    detections = stored_detections(system, settings.max_predictions_per_frame)
+    if detections is None:
+        detections = stored_detections(system, settings.max_predictions_per_frame)
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
         found = check_detections(with_players(system, weighed.views, detections), found, detections, judged,
                                  settings.doubt_detection_size_tolerance, geometry, weighed.weighed)

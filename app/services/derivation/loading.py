@@ -18,10 +18,10 @@ session gets only the relations it has not loaded; changed attributes are kept);
 from __future__ import annotations
 
 import functools
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session, aliased, joinedload
+from sqlalchemy.orm import InstanceState, Session, aliased, joinedload
 from sqlalchemy.orm.attributes import set_committed_value
 
 from app.db.models import Doubt, Frame, PlayerBox, Prediction, System, Triangulation, TriangulationPair
@@ -114,10 +114,12 @@ def load_view_predictions(session: Session, frames: Sequence[Frame], per_frame: 
 
 @functools.cache
 def _players_statement() -> sa.Select:
-    """The person boxes of the frames ``ids`` (an expanding parameter), their columns as plain rows, in id order."""
-    return (sa.select(PlayerBox.frame_id, PlayerBox.cls, PlayerBox.ident, PlayerBox.x1, PlayerBox.y1, PlayerBox.x2,
-                      PlayerBox.y2)
-            .where(PlayerBox.frame_id.in_(sa.bindparam("ids", expanding=True))).order_by(PlayerBox.id))
+    """The person boxes of the frames ``ids`` (an expanding parameter), their columns as plain rows, in id order. A
+    select of the table's columns, not of the mapped class's: the ORM's compilation of an entity statement is most of
+    what executing one this small costs, and the rows are the same."""
+    t = cast(sa.Table, PlayerBox.__table__).c
+    return (sa.select(t.frame_id, t.cls, t.ident, t.x1, t.y1, t.x2, t.y2)
+            .where(t.frame_id.in_(sa.bindparam("ids", expanding=True))).order_by(t.id))
 
 
 def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
@@ -127,8 +129,7 @@ def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
     they are (an edit reads them before it computes, and a read while it computes would hold a connection). Plain rows,
     not ORM objects: what reads them (the players check of the ball, the detector's check) reads their values only,
     and building a few dozen ORM objects was most of what the boxes cost an edit (``benchmarks/SCALE.md``)."""
-    wanted = [f for f in frames if sa.inspect(f).persistent and "players" in sa.inspect(f).unloaded
-              and VIEW_PLAYERS not in sa.inspect(f).info]
+    wanted = [f for f in frames if _players_unread(sa.inspect(f))]
     if not wanted:
         return
     found: dict[int, list[tuple[str, str | None, tuple[float, float, float, float]]]] = {f.id: [] for f in wanted}
@@ -136,6 +137,11 @@ def load_view_players(session: Session, frames: Sequence[Frame]) -> None:
         found[fid].append((cls, ident, (x1, y1, x2, y2)))
     for f in wanted:
         sa.inspect(f).info[VIEW_PLAYERS] = ViewPlayers(found[f.id])
+
+
+def _players_unread(state: InstanceState) -> bool:
+    """Whether a frame (its instance ``state``) is stored, with neither its person boxes loaded nor read as rows."""
+    return state.persistent and "players" in state.unloaded and VIEW_PLAYERS not in state.info
 
 
 def _hand_over(parent: Any, key: str, rows: list[Any]) -> None:

@@ -78,6 +78,7 @@ from app.services.derivation import cameras as shared
 from app.services.derivation.ball import ball_facts, judged_by_evidence, system_ball, takes_part
 from app.services.derivation.cameras import PairPlayersMemo, mirrored_camera, stored_camera
 from app.services.derivation.doubts import (
+    stored_detections,
     update_doubts,
     update_label_distances,
     weighed_views,
@@ -242,13 +243,15 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_reprojection(f, cameras.get(f.id), ball)
         admitted = f.calibration is not None and f.calibration.admitted
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
-    update_doubts(system, settings, cameras, geometry, weighed, after_confirming)
+    # the views' detections read once, for the doubts and the ball's evidence (nothing between changes them)
+    detections = stored_detections(system, settings.max_predictions_per_frame)
+    update_doubts(system, settings, cameras, geometry, weighed, after_confirming, detections)
     update_label_distances(system, settings, weighed, geometry)
     kept = [p for p in result.pairs if p.kept]
     errors = [p.error / result.tau_px for p in kept if p.error is not None and result.tau_px]
     pairs = [(cast(int, p.view_a), cast(int, p.view_b)) for p in kept]
     update_summary(system, tri, ball_facts(system, result.point, pairs, sigma_m, cameras, settings, players_memo,
-                                           max(errors, default=None)))
+                                           max(errors, default=None), detections))
     put_values(system, {"derived_version": DERIVED_VERSION, "derived_settings": settings.derived_fingerprint()})
     scope.changed(system)  # its derived rows were written: what its next edit compares (``scope``)
     return tri
@@ -468,7 +471,12 @@ def _reprojection_error(camera: Camera, ball: np.ndarray, centre: np.ndarray) ->
     """A view's reprojection error as its facts show it: px of its image between the labelled centre ``centre`` (2,)
     and the 3D ball's projection (None behind the camera). The one computation of the stored error and of the error
     a placement would have once confirmed (``recompute_system``'s ``after_confirming``)."""
-    uv = _projected(camera, ball)
+    return _pixel_error(_projected(camera, ball), centre)
+
+
+def _pixel_error(uv: np.ndarray | None, centre: np.ndarray) -> float | None:
+    """px between the ball's projection ``uv`` (2,) (None: behind the camera) and the labelled centre ``centre``
+    (2,): :func:`_reprojection_error` given the projection."""
     return None if uv is None else float(np.linalg.norm(uv - centre))
 
 
@@ -479,8 +487,8 @@ def _update_reprojection(frame: Frame, camera: Camera | None, ball: np.ndarray |
             frame.reprojection = None
         return
     centre = _label_centre(frame)
-    assert camera is not None and ball is not None  # a projection was found
-    error = None if centre is None else _reprojection_error(camera, ball, centre)
+    # the stored error from the projection just made (what _reprojection_error would project again)
+    error = None if centre is None else _pixel_error(uv, centre)
     rep = frame.reprojection
     if rep is None:
         frame.reprojection = rep = BallReprojection(point=[0.0, 0.0])

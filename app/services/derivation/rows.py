@@ -17,10 +17,13 @@ def put_values(row: Any, values: dict[str, Any]) -> Any:
     """Set ``values`` (column attribute -> value) on ``row`` (a NOT NULL column a pending row left unset keeps its
     default); returns the row. An attribute that holds an equal value already (``==``: numbers, strings, enums, JSON
     lists and dicts) is not set: a row whose values all stay as they were stays out of the next flush altogether."""
-    columns = sa.inspect(type(row)).columns
+    columns = None  # the row's columns, looked up for a None only (most values are not: a recomputation sets dozens)
     for key, value in values.items():
-        if value is None and not columns[key].nullable:
-            continue
+        if value is None:
+            if columns is None:
+                columns = sa.inspect(type(row)).columns
+            if not columns[key].nullable:
+                continue
         if key in row.__dict__ and row.__dict__[key] == value:
             continue
         setattr(row, key, value)
