@@ -8,14 +8,34 @@ import pytest
 import sqlalchemy as sa
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
+from pwdlib import PasswordHash
+from pwdlib.hashers.argon2 import Argon2Hasher
 
-from app.db.models import RateLimitCounter
+from app.db.models import RateLimitCounter, User
 from app.main import create_app
+from app.services.accounts import users
 from tests.accounts import Account
 
 pytestmark = pytest.mark.engine
 
 NOW = 1_900_000_000.0
+#: argon2id at its lightest parameters. The throttle is these tests' subject, not the hash's cost: a check of the
+#: recommended parameters costs about a tenth of a second on a quiet machine (a third under load), and these tests
+#: make some 130 of them, each failure as costly as the server's.
+LIGHT = PasswordHash((Argon2Hasher(time_cost=1, memory_cost=8, parallelism=1),))
+
+
+@pytest.fixture(autouse=True)
+def _light_hashes(app: FastAPI, accounts: dict[str, Account], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The accounts' stored hashes and the unknown name's dummy hash made with :data:`LIGHT`, in the test's own
+    transaction (rolled back after it). A login still checks the password with argon2, by the parameters its hash
+    names, and a right one is rehashed with the recommended parameters as in service."""
+    monkeypatch.setattr(users, "_DUMMY_HASH", LIGHT.hash("v3d: no such user"))
+    with app.state.session_factory() as session:
+        for account in accounts.values():
+            session.execute(sa.update(User).where(User.name == account.name)
+                            .values(password_hash=LIGHT.hash(account.password)))
+        session.commit()
 
 
 @pytest.fixture
