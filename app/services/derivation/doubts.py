@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 from collections import Counter
 from collections.abc import Sequence
-from itertools import combinations
 from typing import Any, Callable, cast
 
 import numpy as np
@@ -218,14 +217,15 @@ def without_unbacked_fixes(system: System, doubts: list[Any], once_confirmed: Co
       where the labelled ray meets the grass, the one spot of the ray a ball on the ground can be, which a random
       box rarely hits (``"one_ray"``);
     * placed from one labelled ray and two (or more) detected views whose rays meet it at one ball (code
-      ``one_view``), where the ball's rule, once every box of that pairing is confirmed (``once_confirmed``), does
-      not keep every pair of the pairing's views that take part in the ball (or keeps no ball): the pairing accepts
-      rays that meet within the doubts' wide tau, the ball keeps a pair only within its views' joint sigma, so a
-      false box that meets the ray and the other box within tau passes the pairing, and once confirmed the ball's
-      rule keeps a ball from the pairs it does not refuse, with nothing checking where it put it (the third view was
-      that check, and it refused); where the rule keeps every pair, the third view checks the other two as it does
-      for three labels (``"one_view"``). Without ``once_confirmed`` (a caller that does not triangulate) such fixes
-      are left as they are.
+      ``one_view``), where the ball's rule, once every box of that pairing is confirmed (``once_confirmed``),
+      leaves out a pair of the pairing's views because their rays disagree (or keeps no ball): the pairing accepts
+      rays that meet within the doubts' wide tau, the ball keeps a pair only within the triangulation's tau and its
+      views' joint sigma, so a false box that meets the ray and the other box within the wider tolerance passes the
+      pairing, and once confirmed the ball's rule keeps a ball from the pairs it does not refuse, with nothing
+      checking where it put it (the third view was that check, and it disagreed); where the rule refuses none of
+      their pairs for disagreeing, the third view checks the other two as it does for three labels
+      (``"one_view"``). Without ``once_confirmed`` (a caller that does not triangulate) such fixes are left as they
+      are.
 
     Such a doubt keeps its numbers, the box the key would have placed among them (``evidence["box"]``, px).
     On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
@@ -255,13 +255,21 @@ def without_unbacked_fixes(system: System, doubts: list[Any], once_confirmed: Co
     return out
 
 
+#: The reasons for which the ball's rule leaves out a pair whose rays it could triangulate because the two views
+#: disagree (``app.geometry.triangulation.DROP_REASONS``): the paper's tau, the players both cameras see, the pairs'
+#: joint sigma (``app.geometry.evidence``).
+DISAGREEING = ("error_above_tau", "players_disagree", "beyond_joint_sigma")
+
+
 def _pairings_the_ball_refuses(doubts: Sequence[Any], labelled: set[int], once_confirmed: ConfirmedBall | None
                                ) -> set[int]:
     """The views (frame ids) of ``one_view`` fills whose pairing the ball's rule would not keep once its boxes are
     confirmed (:func:`without_unbacked_fixes`): for each such fill, the boxes of every ``one_view`` fill among its
     pairing's views (``evidence["agreeing_views"]`` and its own) placed at once, the fill is refused where the ball
-    then made keeps no ball, or leaves out a pair of two of those views that both take part in it (a view whose
-    camera takes no part in the ball, ``ball.takes_part``, is in no pair and is not asked). ``labelled``: the frames
+    then made keeps no ball, or leaves out a pair of two of those views because their rays disagree
+    (:data:`DISAGREEING`). A pair the rule cannot form at all (two cameras too close to triangulate, a point behind a
+    camera: ``baseline_below_min``, ``behind_camera`` ...) says nothing of their agreement and is not asked, nor is a
+    view whose camera takes no part in the ball (``ball.takes_part``: it is in no pair). ``labelled``: the frames
     with a label a person placed. Empty without ``once_confirmed``."""
     if once_confirmed is None:
         return set()
@@ -275,10 +283,8 @@ def _pairings_the_ball_refuses(doubts: Sequence[Any], labelled: set[int], once_c
         views = frozenset({vid, *((d.evidence or {}).get("agreeing_views") or [])})
         if views not in asked:
             result = once_confirmed({v: boxes[v] for v in views if v in boxes})
-            taking_part = {v for p in result.pairs for v in (p.view_a, p.view_b)} & views
-            kept = {frozenset((p.view_a, p.view_b)) for p in result.pairs if p.kept}
-            asked[views] = result.point is None or not all(
-                frozenset(pair) in kept for pair in combinations(sorted(taking_part, key=repr), 2))
+            asked[views] = result.point is None or any(
+                p.reason in DISAGREEING and p.view_a in views and p.view_b in views for p in result.pairs)
         if asked[views]:
             refused.add(vid)
     return refused

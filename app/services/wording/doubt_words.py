@@ -56,9 +56,9 @@ def _no_key(ev, n) -> str:
                 "label by eye where the ball is.")
     if ev.get("no_key") == "one_view":
         return (f" No fix key: confirmed beside {_list(ev.get('agreeing_views'), n)}, this box and the others of its "
-                "pairing would not make a ball every one of these views agrees on by the 3D ball's rule (their rays "
-                "do not all meet within their joint sigma), so nothing would check where the ball they make lies; "
-                "place the label by eye where the ball is.")
+                "pairing would not make a ball every one of these views agrees on by the 3D ball's rule (it finds two "
+                "of their rays disagree: beyond tau, their joint sigma or their players), so nothing would check "
+                "where the ball they make lies; place the label by eye where the ball is.")
     if ev.get("no_key") == "detections":
         return (" No fix key: no label a person placed takes part, and boxes placed from detections alone would make "
                 "a 3D ball of the detector's boxes alone; place the label by eye where the ball is.")

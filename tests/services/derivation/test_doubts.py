@@ -475,7 +475,7 @@ def test_boxes_placed_from_one_labelled_ray_and_two_detected_views_whose_pairs_t
     for d in found:
         assert d.suggestion is None and d.evidence["no_key"] == "one_view"
         assert d.evidence["score"] == 0.9 and len(d.evidence["box"]) == 4  # the doubt keeps its numbers and box
-        assert "No fix key: confirmed beside 1.png" in d.message and "joint sigma" in d.message
+        assert "No fix key: confirmed beside 1.png" in d.message and "rays disagree" in d.message
     # what the keys would have made: the boxes confirmed as the pass confirms them, one after the other
     errors = []
     for d in found:
@@ -483,7 +483,8 @@ def test_boxes_placed_from_one_labelled_ray_and_two_detected_views_whose_pairs_t
         tri = _stored(db_session, system.id).triangulation
         errors.append(float(np.linalg.norm(np.subtract(tri.ball3d, BALL))))
     assert errors[0] > 1.0  # the false box and the labelled ray: a wrong ball
-    assert not all(p.kept for p in _stored(db_session, system.id).triangulation.pairs)  # the rule refuses pairs
+    reasons = {p.reason for p in _stored(db_session, system.id).triangulation.pairs}
+    assert reasons & set(doubt_service.DISAGREEING)  # the rule refuses a pair of them for disagreeing
 
     system, found = _one_view_doubts(db_session, db_settings, game, "2.png", BALL)
     for d in found:
