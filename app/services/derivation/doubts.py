@@ -31,7 +31,13 @@ from app.geometry.doubts.judge import consensus_without, consensuses_without
 from app.geometry.doubts.pairings import ON_GRASS_M
 from app.geometry.pair_error import REFERENCE_WIDTH_PX, scaled_error_px
 from app.geometry.pitch import PLAY_VOLUME
-from app.geometry.triangulation import BallObservation, PairGeometry, pair_geometry, reprojection_error_px
+from app.geometry.triangulation import (
+    BallObservation,
+    PairGeometry,
+    TriangulationResult,
+    pair_geometry,
+    reprojection_error_px,
+)
 from app.geometry.weighting import calibration_weight, centre_of, label_centre
 from app.services.calibration.players import frame_players
 from app.services.derivation.cameras import stored_camera
@@ -144,14 +150,17 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
                   geometry: Callable[[BallObservation, BallObservation], PairGeometry] = pair_geometry,
                   weighed: WeighedViews | None = None,
                   after_confirming: ConfirmedError | None = None,
-                  detections: dict[int, list[Detection]] | None = None) -> list[Doubt]:
+                  detections: dict[int, list[Detection]] | None = None,
+                  once_confirmed: ConfirmedBall | None = None) -> list[Doubt]:
     """Judge the system (``app.geometry.doubts.judge_system``; ``geometry``: the recomputation's pair geometry, shared
     with its triangulation; ``weighed``: its :func:`weighed_views`, when made already; ``detections``: its
     :func:`stored_detections`, when read already) and replace its stored doubts and counts.
     ``after_confirming(frame, centre)``: the recomputation's error (px of the view) of a label centred at ``centre``
     (2,) px once a person confirmed it; given, a detector's box and a placement waiting for its confirmation say that
-    number (:func:`with_confirmed_error`), the one the view shows once confirmed. Changes the session only; the caller
-    commits (with the edit that caused it)."""
+    number (:func:`with_confirmed_error`), the one the view shows once confirmed. ``once_confirmed(boxes)``: the
+    recomputation's triangulation once a person confirmed each box of ``boxes`` (frame id -> box, px); given, boxes
+    placed together from one labelled ray keep their key only where that ball's rule keeps their agreement
+    (:func:`without_unbacked_fixes`). Changes the session only; the caller commits (with the edit that caused it)."""
     weighed = weighed or weighed_views(system, settings, cameras)
     judged = doubt_settings(settings, kind_of(system).weighs_calibrations)
     found = judge_system(weighed.views, judged, geometry, weighed.weighed)
@@ -161,7 +170,7 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
     if detections:  # a detector's predictions, checked against the other views (none: the doubts as they were)
         found = check_detections(with_players(system, weighed.views, detections), found, detections, judged,
                                  settings.doubt_detection_size_tolerance, geometry, weighed.weighed)
-    found = without_unbacked_fixes(system, found)
+    found = without_unbacked_fixes(system, found, once_confirmed)
     if after_confirming is not None:
         found = with_confirmed_error(system, found, after_confirming)
     names = {f.id: f.name for f in system.frames}
@@ -182,7 +191,13 @@ def update_doubts(system: System, settings: Settings, cameras: dict[int, Camera]
 PLACING_ACTIONS = ("snap_box", "snap_point")
 
 
-def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
+#: ``once_confirmed(boxes)``: the triangulation (its fused ball and every pair, kept or refused) the recomputation would
+#: make once a person confirmed a ball box on each frame of ``boxes`` (frame id -> ``[x1, y1, x2, y2]`` px).
+ConfirmedBall = Callable[[dict[int, Sequence[float]]], TriangulationResult]
+
+
+def without_unbacked_fixes(system: System, doubts: list[Any], once_confirmed: ConfirmedBall | None = None
+                           ) -> list[Any]:
     """``doubts`` with no one-key fix where, in a system without a 3D ball, the fix would place a label that the
     ball's rule has no label of a person to check against:
 
@@ -202,7 +217,17 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
       says it as well; confirmed, the two views make the ball with nothing to check its depth (the ball's rule
       vouches for a depth only by a third view). On the grass the ground is that check: the pairing puts the ball
       where the labelled ray meets the grass, the one spot of the ray a ball on the ground can be, which a random
-      box rarely hits (``"one_ray"``).
+      box rarely hits (``"one_ray"``);
+    * placed from one labelled ray and two (or more) detected views whose rays meet it at one ball (code
+      ``one_view``), where the ball's rule, once every box of that pairing is confirmed (``once_confirmed``),
+      leaves out a pair of the pairing's views because their rays disagree (or keeps no ball): the pairing accepts
+      rays that meet within the doubts' wide tau, the ball keeps a pair only within the triangulation's tau and its
+      views' joint sigma, so a false box that meets the ray and the other box within the wider tolerance passes the
+      pairing, and once confirmed the ball's rule keeps a ball from the pairs it does not refuse, with nothing
+      checking where it put it (the third view was that check, and it disagreed); where the rule refuses none of
+      their pairs for disagreeing, the third view checks the other two as it does for three labels
+      (``"one_view"``). Without ``once_confirmed`` (a caller that does not triangulate) such fixes are left as they
+      are.
 
     Such a doubt keeps its numbers, the box the key would have placed among them (``evidence["box"]``, px).
     On made copies of the shared detector sets these made balls 1.0-20 m off in systems that had none
@@ -216,18 +241,55 @@ def without_unbacked_fixes(system: System, doubts: list[Any]) -> list[Any]:
         return doubts
     labelled = {f.id for f in system.frames if f.ball_label is not None and not f.ball_label.suggested
                 and f.ball_label.centre is not None}
+    refused = _pairings_the_ball_refuses(doubts, labelled, once_confirmed)
     out = []
     for d in doubts:
         if d.suggestion and d.suggestion.get("action") in PLACING_ACTIONS and d.view_id not in labelled:
             agreeing = [v for v in (d.evidence or {}).get("agreeing_views") or [] if v in labelled]
             why = ("agreeing" if len(agreeing) >= 2 else "detections" if d.code == "detections_agree"
-                   else "one_ray" if d.code == "one_ray" and _depth_from_box_alone(d.evidence or {}) else None)
+                   else "one_ray" if d.code == "one_ray" and _depth_from_box_alone(d.evidence or {})
+                   else "one_view" if d.code == "one_view" and d.view_id in refused else None)
             if why is not None:
                 # the box stays among its numbers: where the key would have placed it, for a person to judge by eye
                 box = {"box": d.suggestion["box"]} if d.suggestion.get("box") is not None else {}
                 d = dataclasses.replace(d, suggestion=None, evidence={**d.evidence, **box, "no_key": why})
         out.append(d)
     return out
+
+
+#: The reasons for which the ball's rule leaves out a pair whose rays it could triangulate because the two views
+#: disagree (``app.geometry.triangulation.DROP_REASONS``): the paper's tau, the players both cameras see, the pairs'
+#: joint sigma (``app.geometry.evidence``).
+DISAGREEING = ("error_above_tau", "players_disagree", "beyond_joint_sigma")
+
+
+def _pairings_the_ball_refuses(doubts: Sequence[Any], labelled: set[int], once_confirmed: ConfirmedBall | None
+                               ) -> set[int]:
+    """The views (frame ids) of ``one_view`` fills whose pairing the ball's rule would not keep once its boxes are
+    confirmed (:func:`without_unbacked_fixes`): for each such fill, the boxes of every ``one_view`` fill among its
+    pairing's views (``evidence["agreeing_views"]`` and its own) placed at once, the fill is refused where the ball
+    then made keeps no ball, or leaves out a pair of two of those views because their rays disagree
+    (:data:`DISAGREEING`). A pair the rule cannot form at all (two cameras too close to triangulate, a point behind a
+    camera: ``baseline_below_min``, ``behind_camera`` ...) says nothing of their agreement and is not asked, nor is a
+    view whose camera takes no part in the ball (``ball.takes_part``: it is in no pair). ``labelled``: the frames
+    with a label a person placed. Empty without ``once_confirmed``."""
+    if once_confirmed is None:
+        return set()
+    boxes = {d.view_id: d.suggestion["box"] for d in doubts
+             if d.code == "one_view" and d.view_id not in labelled and d.suggestion
+             and d.suggestion.get("action") == "snap_box" and d.suggestion.get("box") is not None}
+    refused: set[int] = set()
+    asked: dict[frozenset[int], bool] = {}
+    for vid in boxes:
+        d = next(x for x in doubts if x.view_id == vid and x.code == "one_view" and x.suggestion)
+        views = frozenset({vid, *((d.evidence or {}).get("agreeing_views") or [])})
+        if views not in asked:
+            result = once_confirmed({v: boxes[v] for v in views if v in boxes})
+            asked[views] = result.point is None or any(
+                p.reason in DISAGREEING and p.view_a in views and p.view_b in views for p in result.pairs)
+        if asked[views]:
+            refused.add(vid)
+    return refused
 
 
 def _depth_from_box_alone(evidence: dict[str, Any]) -> bool:

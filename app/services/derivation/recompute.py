@@ -90,7 +90,7 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 9 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
+DERIVED_VERSION = 10 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
 # weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
@@ -99,7 +99,8 @@ DERIVED_VERSION = 9 + RULE_VERSION  # 2: pairs outside the play volume dropped, 
 # a view below admission that fits most of its own lines takes part, an undetermined camera makes no pair, and a pair
 # whose cameras disagree on their players is left out; 8: the doubts' fills count such a view as the ball does (a box
 # it would make a ball with is no weak fill), and a box placed from labels the ball keeps no ball from gets no fix key;
-# 9: nor a box placed from one labelled ray whose ball is in the air where no third view sees it
+# 9: nor a box placed from one labelled ray whose ball is in the air where no third view sees it; 10: nor boxes
+# placed from one labelled ray and two detected views whose pairs the ball's rule would not all keep once confirmed
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
@@ -220,6 +221,8 @@ def recompute_system(session: Session, system: System, settings: Settings,
     result, sigma_m = ball_of(observations)
     after_confirming = partial(_error_once_confirmed, cameras, observations, result,
                                lambda o, boxes: ball_of(o, boxes)[0], by_evidence)
+    once_confirmed = partial(_ball_once_confirmed, frames, cameras, observations,
+                             lambda o, boxes: ball_of(o, boxes)[0], by_evidence)
 
     tri = system.triangulation
     if tri is None:
@@ -245,7 +248,7 @@ def recompute_system(session: Session, system: System, settings: Settings,
         _update_optimised_box(f, cameras.get(f.id) if admitted else None, ball, settings)
     # the views' detections read once, for the doubts and the ball's evidence (nothing between changes them)
     detections = stored_detections(system, settings.max_predictions_per_frame)
-    update_doubts(system, settings, cameras, geometry, weighed, after_confirming, detections)
+    update_doubts(system, settings, cameras, geometry, weighed, after_confirming, detections, once_confirmed)
     update_label_distances(system, settings, weighed, geometry)
     kept = [p for p in result.pairs if p.kept]
     errors = [p.error / result.tau_px for p in kept if p.error is not None and result.tau_px]
@@ -297,6 +300,27 @@ def _error_once_confirmed(cameras: dict[int, Camera], observations: list[BallObs
         ball = triangulated([*(o for o in observations if o.view_id != frame.id), confirmed],
                             None if box is None else {frame.id: box}).point
     return None if ball is None else _reprojection_error(camera, np.asarray(ball, dtype=float), centre)
+
+
+def _ball_once_confirmed(frames: Sequence[Frame], cameras: dict[int, Camera], observations: list[BallObservation],
+                         triangulated: Callable[[list[BallObservation], dict[int, Sequence[float]] | None],
+                                                TriangulationResult], by_evidence: bool,
+                         boxes: dict[int, Sequence[float]]) -> TriangulationResult:
+    """The 3D ball (its pairs kept and refused) the recomputation would triangulate once a person confirmed a ball
+    box on each frame of ``boxes`` (frame id -> ``[x1, y1, x2, y2]`` px of its image): each box's centre stands for
+    that view's label, its box for the label's size, beside the labels that take part now (``observations``); a
+    frame without a camera, or one that takes no part in the ball (``ball.takes_part``), adds nothing. What
+    ``app.services.derivation.doubts.without_unbacked_fixes`` asks of boxes placed together."""
+    placed = []
+    for f in frames:
+        box = boxes.get(f.id)
+        if box is None or f.id not in cameras or not takes_part(f, by_evidence):
+            continue
+        centre = np.array([(box[0] + box[2]) / 2, (box[1] + box[3]) / 2], dtype=float)
+        placed.append(BallObservation(view_id=f.id, camera=cameras[f.id], point_px=centre, image_width=f.width))
+    ids = {o.view_id for o in placed}
+    return triangulated([*(o for o in observations if o.view_id not in ids), *placed],
+                        {fid: b for fid, b in boxes.items() if fid in ids})
 
 
 def system_rig_rows(session: Session, system: System, settings: Settings) -> list[tuple[int, np.ndarray, bool]] | None:

@@ -54,6 +54,11 @@ def _no_key(ev, n) -> str:
         return (f" No fix key: only this box says where along {ray}'s ray the ball is ({up} m above the grass, where "
                 "no third view sees it), and a false box on that ray at a ball's size would say the same; place the "
                 "label by eye where the ball is.")
+    if ev.get("no_key") == "one_view":
+        return (f" No fix key: confirmed beside {_list(ev.get('agreeing_views'), n)}, this box and the others of its "
+                "pairing would not make a ball every one of these views agrees on by the 3D ball's rule (it finds two "
+                "of their rays disagree: beyond tau, their joint sigma or their players), so nothing would check "
+                "where the ball they make lies; place the label by eye where the ball is.")
     if ev.get("no_key") == "detections":
         return (" No fix key: no label a person placed takes part, and boxes placed from detections alone would make "
                 "a 3D ball of the detector's boxes alone; place the label by eye where the ball is.")

@@ -426,3 +426,67 @@ def test_a_box_on_a_lone_labelled_ray_with_its_ball_in_the_air_gets_no_fix_key_o
     assert np.linalg.norm(placed - BALL) < 0.3
     assert d.suggestion is not None and d.suggestion["action"] == "snap_box" and "no_key" not in d.evidence
     assert "No fix key" not in d.message
+
+
+def _one_view_doubts(db_session: Session, db_settings: Settings, game: object, name: str, boxed: np.ndarray
+                     ) -> tuple[object, list[object]]:
+    """A three-view system of the true ball (``BALL``, on the grass) labelled in its first view only, its cameras
+    sure to a few pixels (a stored uncertainty of 0.05 degree in pan and tilt), whose detector found one box in each
+    other view: a ball's silhouette at ``boxed`` (world metres, z down) in the second, at the ball in the third.
+    Returns the system once recomputed and those two views' ``ball_detected`` doubts."""
+    from app.db.models import Prediction
+    from app.services.derivation.recompute import recompute_system
+
+    scene = make_system(db_session, db_settings, game, name, labelled=(True, False, False))
+    for v, where in ((1, boxed), (2, BALL)):
+        x1, y1, x2, y2 = (float(c) for c in sphere_image_box(scene.cameras[v], where, 0.11))
+        db_session.add(Prediction(frame_id=scene.frame_ids[v], source="det", score=0.9, x1=x1, y1=y1, x2=x2, y2=y2))
+    system = _stored(db_session, scene.system_id)
+    for f in system.frames:
+        f.calibration.uncertainty = {"pan_deg": 0.05, "tilt_deg": 0.05, "roll_deg": 0.0, "focal_px": 0.0}
+    db_session.flush()
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    system = _stored(db_session, scene.system_id)
+    assert system.triangulation.ball3d is None  # one labelled view
+    found = sorted((d for d in system.doubts if d.kind == "ball_detected"), key=lambda d: d.frame_id)
+    assert [d.frame_id for d in found] == scene.frame_ids[1:]
+    assert all(d.evidence["code"] == "one_view" for d in found)  # one labelled ray, two detected views
+    return system, found
+
+
+def test_boxes_placed_from_one_labelled_ray_and_two_detected_views_whose_pairs_the_ball_refuses_get_no_fix_key(
+        db_session: Session, db_settings: Settings) -> None:
+    """Known truth: a ball on the grass labelled in one view. A false box in the second view, a ball's size, on the
+    labelled ray 1.5 m nearer that camera, and the ball's own box in the third meet the labelled ray within the
+    doubts' tau at one ball 0.8 m off: the pairing accepts them. Confirmed, the false box alone with the labelled ray
+    makes a ball 1.5 m off, and with the third box the ball's rule refuses two of the three pairs (beyond their joint
+    sigma): the rule the ball applies once the boxes are placed does not keep the pairing's agreement, so neither box
+    gets a fix key (each keeps its doubt, numbers and box). Where the second box is the ball's too, the keys stay."""
+    from app.services.curation import editing
+
+    game = make_game(db_session)
+    centre = np.array([0.0, 58.0, -16.0])  # the factory's first camera
+    along = (BALL - centre) / np.linalg.norm(BALL - centre)
+    false = BALL - 1.5 * along
+    system, found = _one_view_doubts(db_session, db_settings, game, "1.png", false)
+    placed = np.asarray(found[0].evidence["ball3d"], float)
+    assert np.linalg.norm(placed - BALL) > 0.5  # the pairing's ball is not the ball
+    for d in found:
+        assert d.suggestion is None and d.evidence["no_key"] == "one_view"
+        assert d.evidence["score"] == 0.9 and len(d.evidence["box"]) == 4  # the doubt keeps its numbers and box
+        assert "No fix key: confirmed beside 1.png" in d.message and "rays disagree" in d.message
+    # what the keys would have made: the boxes confirmed as the pass confirms them, one after the other
+    errors = []
+    for d in found:
+        editing.update_ball_label(db_session, d.frame_id, box=d.evidence["box"], settings=db_settings)
+        tri = _stored(db_session, system.id).triangulation
+        errors.append(float(np.linalg.norm(np.subtract(tri.ball3d, BALL))))
+    assert errors[0] > 1.0  # the false box and the labelled ray: a wrong ball
+    reasons = {p.reason for p in _stored(db_session, system.id).triangulation.pairs}
+    assert reasons & set(doubt_service.DISAGREEING)  # the rule refuses a pair of them for disagreeing
+
+    system, found = _one_view_doubts(db_session, db_settings, game, "2.png", BALL)
+    for d in found:
+        assert d.suggestion is not None and d.suggestion["action"] == "snap_box" and "no_key" not in d.evidence
+        assert "No fix key" not in d.message
