@@ -68,6 +68,7 @@ class QueuePage {
   prevCursor = null;
 
   constructor() {
+    this.loads = 0; // loads begun: an answer is shown only when its load is still the latest (load)
     const form = $("filters");
     // the doubt filter's kinds and words come from the contract through words.js, before the form is filled
     $("filter-doubt").append(...Object.entries(DOUBT_LABEL).map(([kind, label]) => el("option", { value: kind }, label)));
@@ -207,8 +208,12 @@ class QueuePage {
 
   async load() {
     this.markSort();
+    // the latest load wins: two filters changed in quick succession send two requests whose answers may come back
+    // in either order, and the rows shown must be those of the filters the form and the address now say
+    const ticket = ++this.loads;
     try {
       const answer = await listSystems(apiParams(this.state));
+      if (ticket !== this.loads) return;
       clearError();
       this.rows = answer.items || [];
       this.total = isNum(answer.total) ? answer.total : this.rows.length;
@@ -224,7 +229,7 @@ class QueuePage {
       if (at >= 0) $("queue").querySelectorAll("tbody tr")[at].scrollIntoView({ block: "nearest" });
       this.renderProgress(answer.counts || {});
     } catch (err) {
-      showError(err.message);
+      if (ticket === this.loads) showError(err.message);
     }
   }
 

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, tid, words_js_literal
+from tests.browser.support import api_write, pump_until, settled, tid, words_js_literal
 
 pytestmark = pytest.mark.browser
 
@@ -72,6 +72,37 @@ def test_queue_filters_and_sorts_by_what_backs_the_3d_ball(page):
     page.wait_for_function("(first) => document.querySelector('[data-testid=queue-row]')?.dataset.id === first",
                            arg=order[0])
     assert [r.get_attribute("data-id") for r in page.locator(tid("queue-row")).all()] == order
+
+
+def test_an_earlier_queue_answer_coming_back_last_leaves_the_rows_of_the_latest_filters(page):
+    """Two filters changed in quick succession send two list requests; where the first one's answer comes back after
+    the second's (held here until the second is shown), the rows stay those of the filters the form and the address
+    say. (Before, the last answer to arrive was shown: a browser run beside a coverage run showed the default order
+    under "best backed first".)"""
+    everything = _api(page, "/api/systems?limit=500")["items"]
+    vouched = {s["id"] for s in everything if s["ball_evidence"] == "vouched"}
+    assert vouched and len(vouched) < len(everything)
+    page.goto("/")
+    page.locator(tid("queue-row")).first.wait_for()
+    settled(page)
+    held: list = []
+
+    def hold_the_vouched_list(route) -> None:
+        if "ball_evidence=vouched" in route.request.url and not held:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route(re.compile(r"/api/systems\?"), hold_the_vouched_list)
+    page.select_option(tid("filter-ball-evidence"), "vouched")
+    pump_until(page, lambda: held, "the vouched list's request to be held")
+    page.select_option(tid("filter-ball-evidence"), "")
+    page.wait_for_function("(n) => document.querySelectorAll('[data-testid=queue-row]').length === n",
+                           arg=min(len(everything), 50))
+    held[0].continue_()
+    settled(page)
+    assert "ball_evidence=vouched" not in page.url
+    assert page.locator(tid("queue-row")).count() == min(len(everything), 50)
 
 
 def test_missing_ball_is_fixed_with_its_key(page, artifacts):
