@@ -79,16 +79,22 @@ function entryRow(entry) {
     what);
 }
 
+/** Pages asked for so far: an answer is shown only when its page is still the latest asked (two pages asked in quick
+ * succession may be answered in either order, and the rows must be the filters' and the page's the form says). */
+let asked = 0;
+
 async function show(state) {
   const form = $("audit-filters");
   for (const k of FILTERS) form.elements[k].value = state[k];
+  const ticket = ++asked;
   let page;
   try {
     page = await listAudit(apiQuery(state));
   } catch (e) {
-    showError(e.message);
+    if (ticket === asked) showError(e.message);
     return;
   }
+  if (ticket !== asked) return;
   clearError();
   const table = $("audit");
   table.querySelector("tbody").replaceChildren(...page.items.map(entryRow));

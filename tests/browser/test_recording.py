@@ -2,6 +2,7 @@
 its own, leaves its trace and a screenshot of its open page, and its report names them and what the page logged."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import zipfile
@@ -36,7 +37,9 @@ def test_a_failed_test_keeps_its_trace_and_a_screenshot_and_a_passed_one_keeps_n
     done = subprocess.run(
         [sys.executable, "-m", "pytest", "-p", "tests.conftest", "-p", "no:cacheprovider", "-n", "0", "-q",
          "-c", str(ROOT / "pyproject.toml"), "--rootdir", str(tmp_path.parent), str(module)],
-        cwd=ROOT, capture_output=True, text=True, timeout=300)
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+        # the run's own options only: CI's PYTEST_ADDOPTS (its -q on top of this -q) would drop the summary's counts
+        env={k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"})
     kept = sorted(TRACES.glob(f"{name}*"))
     try:
         assert "1 failed, 1 passed" in done.stdout, done.stdout + done.stderr
