@@ -193,7 +193,9 @@ def test_p_pins_a_comment_on_the_system_page(small_page):
     page.locator(tid("view-svg")).first.wait_for()
     page.locator(tid("comment-pin-start")).wait_for()
     page.keyboard.press("p")
-    page.wait_for_function("document.body.classList.contains('pinning')")
+    # a locator, not an expression: Playwright polls a string expression with `new Function` in the page, which
+    # the page's CSP (no unsafe-eval) refuses whenever the class is not there at the first look (CI, under load)
+    page.locator("body.pinning").wait_for(state="attached")
     svg = page.locator(tid("view-svg")).first
     svg.click(position={"x": 40, "y": 40})
     page.locator(tid("comment-form")).wait_for()
