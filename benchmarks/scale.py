@@ -65,16 +65,20 @@ from typing import Any, Optional
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: Issue 8's done-when: per measure, (largest ratio scale / demo, largest absolute value).
+#: Per measure, (largest ratio scale / demo, largest absolute value): the system page, the queue and a ball edit
+#: within 1.5x of the demo's p95, so that a page costs at 12,800 systems what it costs at 9; the queue at random
+#: depths within 2x; the whole export within 10 s.
 TARGETS: dict[str, tuple[Optional[float], Optional[float]]] = {
-    "queue_p95_ms": (2.0, 40.0),
-    "queue_depth_p95_ms": (2.0, 40.0),  # issue 16: every sort at random depths, by offset and by cursor
+    "queue_p95_ms": (1.5, 40.0),
+    "queue_depth_p95_ms": (2.0, 40.0),  # every sort at random depths, by offset and by cursor
     "system_p95_ms": (1.5, 60.0),
     "ball_edit_p95_ms": (1.5, 80.0),
     "export_s": (None, 10.0),
 }
-#: Import targets: at least this many frames per second, at most this peak (MB, all processes).
-IMPORT_MIN_FPS = 100.0
+#: Import targets: at least this many frames per second, at most this peak of the process tree's proportional set
+#: size (MB: a page the pool's forked workers share is counted once, as the machine holds it). The RSS sum, which
+#: counts a shared page once per process, is printed beside it.
+IMPORT_MIN_FPS = 150.0
 IMPORT_MAX_PEAK_MB = 1024.0
 #: Queue requests besides the default one: filters, sorts and a deep offset (``{mid}``: half the total).
 QUEUE_VARIANTS: tuple[dict[str, Any], ...] = (
@@ -576,12 +580,13 @@ def format_report(result: dict[str, Any]) -> str:
     imp = result.get("import")
     if imp:
         ok_fps = imp["frames_per_s"] >= IMPORT_MIN_FPS
-        ok_mem = imp["peak_mb"] <= IMPORT_MAX_PEAK_MB
+        peak_pss = imp.get("peak_pss_mb") or imp["peak_mb"]
+        ok_mem = peak_pss <= IMPORT_MAX_PEAK_MB
         lines.append(f"import: {imp['games']} games, {imp['systems']} systems, {imp['frames']} frames in "
                      f"{imp['seconds']:.1f} s = {imp['frames_per_s']:.1f} frames/s (target >= {IMPORT_MIN_FPS:g}: "
-                     f"{'ok' if ok_fps else 'MISSED'}); peak RSS of the process tree {imp['peak_mb']:.0f} MB over "
-                     f"{imp['peak_processes']} processes (target <= {IMPORT_MAX_PEAK_MB:g}: "
-                     f"{'ok' if ok_mem else 'MISSED'})")
+                     f"{'ok' if ok_fps else 'MISSED'}); peak PSS of the process tree {peak_pss:.0f} MB (target <= "
+                     f"{IMPORT_MAX_PEAK_MB:g}: {'ok' if ok_mem else 'MISSED'}; the RSS sum {imp['peak_mb']:.0f} MB "
+                     f"over {imp['peak_processes']} processes)")
         if imp.get("cpu_s"):
             lines.append(f"  CPU time of the process tree {imp['cpu_s']:.0f} s = {imp['cpu_ms_per_frame']:.1f} ms per "
                          f"frame (main process {imp.get('main_cpu_ms_per_frame', 0.0):.1f}, calibration workers "
