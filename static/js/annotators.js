@@ -6,7 +6,7 @@
 // back fixed, as the server counted them. "Download CSV" is the same figures as text/csv. Names come from the server
 // and are set as text only.
 
-import { getMe, send, toQuery } from "./api.js";
+import { getMe, latestWins, send, toQuery } from "./api.js";
 import { el, svg, showError } from "./format.js";
 
 const $ = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -62,16 +62,21 @@ function render(items, query) {
   $("annotators-csv").href = `/api/stats/annotators${toQuery({ ...query, format: "csv" })}`;
 }
 
+/** The two dates changed in quick succession ask twice: the figures shown are those of the dates the form says. */
+const askFigures = latestWins();
+
 async function load() {
+  const latest = askFigures();
   const since = $("annotators-since").value;
   const until = $("annotators-until").value;
   const query = {};
   if (since) query.since = `${since}T00:00:00Z`;
   if (until) query.until = `${until}T00:00:00Z`;
   try {
-    render((await send("GET", `/api/stats/annotators${toQuery(query)}`)).items, query);
+    const { items } = await send("GET", `/api/stats/annotators${toQuery(query)}`);
+    if (latest()) render(items, query);
   } catch (err) {
-    showError(`per-annotator figures: ${err.message}`);
+    if (latest()) showError(`per-annotator figures: ${err.message}`);
   }
 }
 

@@ -169,6 +169,18 @@ export function getDemoAccount() {
   return request("GET", "/api/auth/demo");
 }
 
+/** "The latest asked wins": returns `ask`, each call of which gives a check that stays true only until `ask` is
+ * called again. Two requests sent in quick succession (a filter changed twice, two diffs asked) may be answered in
+ * either order; a page shows an answer only while its request is still the latest asked, so that what it shows is
+ * what its form now says. */
+export function latestWins() {
+  let asked = 0;
+  return () => {
+    const ticket = ++asked;
+    return () => ticket === asked;
+  };
+}
+
 /** Query string from an object, leaving out empty values. */
 export function toQuery(params) {
   const q = new URLSearchParams();

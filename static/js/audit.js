@@ -3,7 +3,7 @@
 // page) and the change in words (the entry's summary). Filters by who, by system and by the reader's days (from,
 // until: local midnights sent as `since` / `until`), and pages of `limit` entries by the API's `next_offset`; the
 // filters and the page are kept in the address bar, so a filtered page can be linked and reloaded.
-import { getMe, listAudit, send, toQuery } from "./api.js";
+import { getMe, latestWins, listAudit, send, toQuery } from "./api.js";
 import "./session.js";
 import { el, fmtWhen, fmtCount, showError, clearError } from "./format.js";
 
@@ -79,22 +79,22 @@ function entryRow(entry) {
     what);
 }
 
-/** Pages asked for so far: an answer is shown only when its page is still the latest asked (two pages asked in quick
- * succession may be answered in either order, and the rows must be the filters' and the page's the form says). */
-let asked = 0;
+/** An answer is shown only while its page is still the latest asked (two pages asked in quick succession may be
+ * answered in either order, and the rows must be the filters' and the page's the form says). */
+const askPage = latestWins();
 
 async function show(state) {
   const form = $("audit-filters");
   for (const k of FILTERS) form.elements[k].value = state[k];
-  const ticket = ++asked;
+  const latest = askPage();
   let page;
   try {
     page = await listAudit(apiQuery(state));
   } catch (e) {
-    if (ticket === asked) showError(e.message);
+    if (latest()) showError(e.message);
     return;
   }
-  if (ticket !== asked) return;
+  if (!latest()) return;
   clearError();
   const table = $("audit");
   table.querySelector("tbody").replaceChildren(...page.items.map(entryRow));

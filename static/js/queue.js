@@ -2,7 +2,7 @@
 // The filters live in the page's query string (a reload or a shared link keeps them) and are handed
 // on to the system page, whose "queue" link and prev / next follow the same queue.
 
-import { listSystems, listGames } from "./api.js";
+import { latestWins, listSystems, listGames } from "./api.js";
 import "./session.js";
 import { JobsPanel } from "./jobs.js";
 import { mountExports } from "./exports.js";
@@ -68,7 +68,7 @@ class QueuePage {
   prevCursor = null;
 
   constructor() {
-    this.loads = 0; // loads begun: an answer is shown only when its load is still the latest (load)
+    this.askLoad = latestWins(); // an answer is shown only while its load is still the latest (load)
     const form = $("filters");
     // the doubt filter's kinds and words come from the contract through words.js, before the form is filled
     $("filter-doubt").append(...Object.entries(DOUBT_LABEL).map(([kind, label]) => el("option", { value: kind }, label)));
@@ -210,10 +210,10 @@ class QueuePage {
     this.markSort();
     // the latest load wins: two filters changed in quick succession send two requests whose answers may come back
     // in either order, and the rows shown must be those of the filters the form and the address now say
-    const ticket = ++this.loads;
+    const latest = this.askLoad();
     try {
       const answer = await listSystems(apiParams(this.state));
-      if (ticket !== this.loads) return;
+      if (!latest()) return;
       clearError();
       this.rows = answer.items || [];
       this.total = isNum(answer.total) ? answer.total : this.rows.length;
@@ -229,7 +229,7 @@ class QueuePage {
       if (at >= 0) $("queue").querySelectorAll("tbody tr")[at].scrollIntoView({ block: "nearest" });
       this.renderProgress(answer.counts || {});
     } catch (err) {
-      if (ticket === this.loads) showError(err.message);
+      if (latest()) showError(err.message);
     }
   }
 

@@ -4,7 +4,7 @@
 // the systems added, removed (and why) and changed, each linked to its system page, with how far each changed
 // system's 3D ball moved (inline SVG, no plotting library: a histogram, or one dot per system when there are few).
 // Every text comes from the server's answer and is set as text, never as markup.
-import { getMe, send } from "./api.js";
+import { getMe, latestWins, send } from "./api.js";
 import "./session.js";
 import { mountExports } from "./exports.js";
 import { el, svg, fmtWhen, showError, clearError } from "./format.js";
@@ -87,9 +87,20 @@ function changeText(change, s) {
   return change === "removed" ? `removed: ${s.why || "no longer accepted"}` : CHANGE_WORDS[change];
 }
 
+/** Two diffs asked in quick succession: the table shows the one the selects now say. */
+const askDiff = latestWins();
+
 async function showDiff(a, b) {
+  const latest = askDiff();
   const url = `/api/releases/${encodeURIComponent(a)}/diff/${encodeURIComponent(b)}`;
-  const diff = await send("GET", url);
+  let diff;
+  try {
+    diff = await send("GET", url);
+  } catch (e) {
+    if (latest()) throw e;
+    return;
+  }
+  if (!latest()) return;
   const body = document.querySelector("[data-testid=diff-table] tbody");
   body.replaceChildren();
   for (const [change, items] of [["added", diff.added], ["removed", diff.removed], ["changed", diff.changed]]) {

@@ -3,9 +3,11 @@ made through the API (one system accepted, then a second), listed with their has
 table naming the added system, and the histogram of 3D moves (none moved: its empty note)."""
 from __future__ import annotations
 
+import re
+
 import pytest
 
-from tests.browser.support import api_json, api_write
+from tests.browser.support import api_json, api_write, pump_until, settled
 
 pytestmark = pytest.mark.browser
 
@@ -39,6 +41,41 @@ def test_the_releases_page_lists_releases_and_shows_their_diff(page, artifacts):
     assert "no 3D ball moved" in page.text_content("[data-testid=diff-histogram]")
     assert page.get_attribute("[data-testid=diff-csv]", "href").endswith("/diff/ui-2?format=csv")
     page.screenshot(path=str(artifacts / "releases.png"), full_page=True)
+
+
+def test_an_earlier_diff_coming_back_last_leaves_the_diff_the_selects_say(page):
+    """Two diffs asked in quick succession; where the first one's answer (a system added) comes back after the
+    second's (a release against itself, held until the second is shown), the table stays the second's."""
+    systems = api_json(page, "/api/systems?limit=5&sort=-name&status=pending")["items"]
+    _accept(page, systems[0]["id"])
+    assert api_write(page, "POST", "/api/releases", data={"name": "race-a"}).status == 201
+    _accept(page, systems[1]["id"])
+    b = api_write(page, "POST", "/api/releases", data={"name": "race-b"})
+    assert b.status == 201, b.text()
+    page.goto("/static/releases.html")
+    page.wait_for_selector("[data-testid=releases] tr[data-release=race-b]")
+    settled(page)
+    held: list = []
+
+    def hold_the_first(route) -> None:
+        if route.request.url.endswith("/race-a/diff/race-b") and not held:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route(re.compile(r"/api/releases/.+/diff/"), hold_the_first)
+    page.select_option("[data-testid=diff-from]", "race-a")
+    page.select_option("[data-testid=diff-to]", "race-b")
+    page.click("[data-testid=diff-show]")
+    pump_until(page, lambda: held, "the first diff's request to be held")
+    page.select_option("[data-testid=diff-from]", "race-b")
+    page.click("[data-testid=diff-show]")
+    same = f"0 added, 0 removed, 0 changed, {b.json()['systems']} unchanged"
+    page.wait_for_function("(t) => document.querySelector('[data-testid=diff-counts]').textContent === t", arg=same)
+    held[0].continue_()
+    settled(page)  # the held answer has come back and been taken in
+    assert page.text_content("[data-testid=diff-counts]") == same
+    assert page.locator("[data-testid=diff-table] tr[data-change=added]").count() == 0
 
 
 def test_the_exports_panel_exports_a_release_naming_it(page, tmp_path):

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import zipfile
 from pathlib import Path
 
 import pytest
 
-from tests.browser.support import api_json, api_write, log_in, tid, wait_for_job
+from tests.browser.support import api_json, api_write, log_in, pump_until, settled, tid, wait_for_job
 from tests.conftest import migrate_new_database
 
 pytestmark = pytest.mark.browser
@@ -311,6 +312,65 @@ def test_every_page_has_the_same_top_bar_links_and_log_out_whole(small_page, art
     # from a system page the queue link keeps the queue's order
     page.goto(f"/systems/{system}?sort=name")
     assert page.locator(f"{tid('site-nav')} {tid('link-queue')}").get_attribute("href") == "/?sort=name"
+
+
+def test_an_earlier_answer_of_the_figures_coming_back_last_leaves_the_figures_of_the_dates_the_form_says(page):
+    """Two dates changed in quick succession ask for the per-annotator figures twice; where the first answer (a window
+    in the far future: nobody) comes back after the second's (held here until the second is shown), the table stays
+    the second's. (Before, the answer to arrive last was shown: an empty table under an empty "from".)"""
+    pending = api_json(page, "/api/systems?limit=1&sort=name&status=pending")["items"]
+    _decide(page, pending[0]["id"], "accepted")  # at least one row in every window that holds today
+    page.goto("/static/stats.html")
+    page.locator(f"{tid('annotator-row')}[data-name='test-admin']").wait_for()
+    settled(page)
+    held: list = []
+
+    def hold_the_future(route) -> None:
+        if "since=2999" in route.request.url and not held:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route(re.compile(r"/api/stats/annotators"), hold_the_future)
+    page.fill(tid("annotators-since"), "2999-01-01")
+    pump_until(page, lambda: held, "the far window's request to be held")
+    page.fill(tid("annotators-since"), "")
+    page.locator(f"{tid('annotator-row')}[data-name='test-admin']").wait_for()
+    held[0].continue_()
+    settled(page)  # the held answer has come back and been taken in
+    assert page.locator(f"{tid('annotator-row')}[data-name='test-admin']").count() == 1
+    assert page.locator(tid("annotators-empty")).is_hidden()
+
+
+def test_an_earlier_audit_page_coming_back_last_leaves_the_entries_of_the_filters_the_form_says(page):
+    """A filter asked, then cleared at once: where the filtered page (a name nobody has: no entry) comes back after
+    the cleared one's (held here until the cleared page is shown), the table stays the cleared page's."""
+    pending = api_json(page, "/api/systems?limit=1&sort=name&status=pending")["items"]
+    _decide(page, pending[0]["id"], "accepted")  # an entry of this admin's, whatever ran before
+    page.goto("/static/audit.html?user=test-admin")
+    page.locator(tid("audit-count")).filter(has_text="match the filters").wait_for()
+    settled(page)
+    held: list = []
+
+    def hold_the_filtered(route) -> None:
+        if "user=nobody-here" in route.request.url and not held:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route(re.compile(r"/api/audit\?"), hold_the_filtered)
+    page.fill(tid("audit-user"), "nobody-here")
+    page.press(tid("audit-user"), "Enter")
+    pump_until(page, lambda: held, "the filtered page's request to be held")
+    page.fill(tid("audit-user"), "")
+    page.click(tid("audit-clear"))
+    page.locator(f"{tid('audit')}[data-shown]:not([data-shown*='user='])").wait_for(state="attached")
+    shown = page.get_attribute(tid("audit"), "data-shown")
+    held[0].continue_()
+    settled(page)  # the held answer has come back and been taken in
+    assert page.get_attribute(tid("audit"), "data-shown") == shown
+    assert "in all" in page.inner_text(tid("audit-count"))
+    assert page.locator(tid("audit-empty")).is_hidden()
 
 
 # ----- 15: reviewer figures beside annotators' --------------------------------------------------------------------
