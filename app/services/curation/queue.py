@@ -67,6 +67,7 @@ from app.services.curation.queue_order import (
     SystemSort,
     decode_cursor,
     encode_cursor,
+    games_then_systems,
     natural_name,
     sort_keys,
 )
@@ -275,9 +276,8 @@ def _walk(session: Session, sort: SystemSort, conds: list[Any], current: Optiona
     ``current`` (see :func:`_slices`) under ``conds``, after skipping ``skip`` rows. Reads ids and sort
     keys only (the sort's index); a slice is counted only to be skipped whole."""
     keys = sort_keys(sort)
-    base = sa.select(*(k.expr for k in keys)).select_from(System)
-    if sort.lstrip("-") == "name":
-        base = base.join(Game, Game.id == System.game_id)
+    by_name = sort.lstrip("-") == "name"
+    base = sa.select(*(k.expr for k in keys)).select_from(games_then_systems() if by_name else System)
     rows: list[tuple[Any, ...]] = []
     slices = _slices(keys, current, side)
     for n, (where, order) in enumerate(slices):
@@ -455,7 +455,8 @@ def _neighbour_statements(sort: SystemSort, filters: SystemFilters, nulls: Optio
     depends on it), both neighbours, the current row's non-NULL keys as parameters ``key0``, ``key1``, ...
     (None for ``nulls`` None)."""
     keys = sort_keys(sort)
-    base = sa.select(System.id).join(Game, Game.id == System.game_id)
+    base = sa.select(System.id).select_from(games_then_systems()) if sort.lstrip("-") == "name" else \
+        sa.select(System.id).join(Game, Game.id == System.game_id)
     keys_stmt = base.with_only_columns(*(k.expr for k in keys)).where(System.id == sa.bindparam("system_id"))
     if nulls is None:
         return keys_stmt, None
