@@ -274,7 +274,10 @@ def _walk(session: Session, sort: SystemSort, conds: list[Any], current: Optiona
           side: Literal["before", "after"], limit: int, skip: int = 0) -> list[tuple[Any, ...]]:
     """Up to ``limit`` rows' sort key values (system id last), nearest first, strictly ``side`` of
     ``current`` (see :func:`_slices`) under ``conds``, after skipping ``skip`` rows. Reads ids and sort
-    keys only (the sort's index); a slice is counted only to be skipped whole."""
+    keys only (the sort's index). A slice is read past ``skip`` rows first; only when that finds nothing is it
+    counted, to be skipped whole, and then along its own order as far as ``skip`` (it holds no more): a page by
+    offset reads about as many index entries as it skips, however large the slice (the work-to-do slice of the
+    default order holds every pending system; counting it whole read all of them for any offset)."""
     keys = sort_keys(sort)
     by_name = sort.lstrip("-") == "name"
     base = sa.select(*(k.expr for k in keys)).select_from(games_then_systems() if by_name else System)
@@ -282,13 +285,13 @@ def _walk(session: Session, sort: SystemSort, conds: list[Any], current: Optiona
     slices = _slices(keys, current, side)
     for n, (where, order) in enumerate(slices):
         stmt = base.where(*conds, *where)
-        if skip and n < len(slices) - 1:
-            inside = int(session.scalar(sa.select(sa.func.count()).select_from(
-                stmt.with_only_columns(System.id).subquery())) or 0)
-            if skip >= inside:
-                skip -= inside
-                continue
-        rows += [tuple(r) for r in session.execute(stmt.order_by(*order).limit(limit - len(rows)).offset(skip))]
+        got = [tuple(r) for r in session.execute(stmt.order_by(*order).limit(limit - len(rows)).offset(skip))]
+        if skip and not got:  # the slice holds no more than ``skip`` rows: skipped whole
+            if n < len(slices) - 1:
+                skip -= int(session.scalar(sa.select(sa.func.count()).select_from(
+                    stmt.with_only_columns(System.id).order_by(*order).limit(skip).subquery())) or 0)
+            continue
+        rows += got
         skip = 0
         if len(rows) >= limit:
             break
