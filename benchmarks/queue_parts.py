@@ -83,7 +83,7 @@ class Database:
             rows = q._walk(session, sort, conds, None, "after", LIMIT + 1)
             more_after = len(rows) > LIMIT
             rows = rows[:LIMIT]
-            more_before = bool(rows) and bool(q._walk(session, sort, conds, rows[0], "before", 1))
+            more_before = False  # a page from the queue's start: nothing lies before it (queue._page)
             mark()
             ids = [r[-1] for r in rows]
             if self.orm:
