@@ -121,9 +121,12 @@ def _advance_sequences(conn: sa.Connection) -> None:
 # ----- the statements of a request and their plans ---------------------------------------------------------------
 
 #: The requests whose statements must read in proportion to what they answer: a system page and a queue page, as the
-#: review UI asks for them (the default queue and the pending one; a page after a cursor). ``{id}``: the system shown.
+#: review UI asks for them (the default queue and the pending one; a page after a cursor; the order by name, whose
+#: first keys are the game's, and a page of it by offset). ``{id}``: the system shown.
 REQUESTS = ("/api/systems/{id}", "/api/systems/{id}?status=pending", "/api/systems?limit=5",
-            "/api/systems?status=pending&limit=5", "/api/systems?limit=2&after={cursor}")
+            "/api/systems?status=pending&limit=5", "/api/systems?limit=2&after={cursor}",
+            "/api/systems/{id}?sort=name", "/api/systems?sort=name&limit=5",
+            "/api/systems?sort=-name&limit=2&offset=5")
 
 #: Statements that plan nothing (transaction control).
 _CONTROL = ("BEGIN", "COMMIT", "ROLLBACK", "SAVEPOINT", "RELEASE")

@@ -9,6 +9,7 @@ down), JaC as fractions in [0, 1].
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from datetime import datetime
 from typing import Any, Optional
 
@@ -193,6 +194,29 @@ class SystemSummaryOut(BallEvidenceFields):
             "ball3d": None if tri is None else tri.ball3d, "ball_sigma_m": None if tri is None else tri.sigma_m,
             "doubt_counts": system.doubt_counts or {}, "assignment": assignment, "open_by": open_by or [],
         })
+
+    @classmethod
+    def of_row(cls, row: Mapping[Any, Any], assignment: Optional[AssignmentOut] = None,
+               open_by: Optional[list[PresenceOut]] = None) -> "SystemSummaryOut":
+        """A queue row from the plain row of ``app.services.curation.queue.SUMMARY_COLUMNS`` (``list_system_rows``):
+        what :meth:`of` answers for the same system loaded as ORM objects (a system never decided: a pending
+        ``review``; without a triangulation: no ball, no sigma), validated from plain values."""
+        return cls.model_validate({
+            **{name: row[name] for name in _SUMMARY_PLAIN},
+            "game": {"id": row["game_id"], "league": row["league"], "season": row["season"], "match": row["match"]},
+            "review": {} if row["review_id"] is None else {
+                "status": row["review_status"], "comment": row["review_comment"],
+                "decided_at": row["review_decided_at"], "excluded": row["review_excluded"],
+                "reset_reason": row["review_reset_reason"], "batch_id": row["review_batch_id"]},
+            "ball3d": row["ball3d"], "ball_sigma_m": row["sigma_m"],
+            "doubt_counts": row["doubt_counts"] or {}, "assignment": assignment, "open_by": open_by or [],
+        })
+
+
+#: The fields of :class:`SystemSummaryOut` a queue row holds under their own names (the others are shaped).
+_SUMMARY_PLAIN = tuple(name for name in SystemSummaryOut.model_fields
+                       if name not in ("game", "review", "ball3d", "ball_sigma_m", "doubt_counts", "assignment",
+                                       "open_by"))
 
 
 class SystemPageOut(BaseModel):

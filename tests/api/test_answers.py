@@ -8,7 +8,7 @@ from fastapi import Response
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
 from app.api.answers import json_answer
-from app.api.view_schemas import SystemView
+from app.api.view_schemas import SystemPageOut, SystemView
 
 
 class _Inner(BaseModel):
@@ -50,3 +50,15 @@ def test_the_system_view_answers_as_its_response_model(client, scene) -> None:
     assert r.headers["etag"] == view.etag
     schema = client.get("/openapi.json").json()["paths"]["/api/systems/{system_id}"]["get"]
     assert schema["responses"]["200"]["content"]["application/json"]["schema"]["$ref"].endswith("/SystemView")
+
+
+def test_the_queue_answers_as_its_response_model(client, scene) -> None:
+    """The queue's page (serialised in its worker thread) parses as the SystemPageOut it declares, its bytes are that
+    model's, and its OpenAPI schema still names it."""
+    r = client.get("/api/systems", params={"limit": 2})
+    assert r.status_code == 200 and r.headers["content-type"] == "application/json"
+    page = SystemPageOut.model_validate_json(r.content)
+    assert page.items and page.total >= len(page.items)
+    assert r.content == TypeAdapter(SystemPageOut).dump_json(page, by_alias=True)
+    schema = client.get("/openapi.json").json()["paths"]["/api/systems"]["get"]
+    assert schema["responses"]["200"]["content"]["application/json"]["schema"]["$ref"].endswith("/SystemPageOut")

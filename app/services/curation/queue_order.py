@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import sqlalchemy as sa
+from sqlalchemy.ext.compiler import compiles
+from sqlalchemy.sql.selectable import Join
 
 from app.core.errors import InvalidInputError
 from app.db.models import BallEvidence, Game, System
@@ -32,6 +34,32 @@ def to_review_first() -> Any:
     so that both engines read the order from that index."""
     whens: list[tuple[Any, Any]] = [(sa.literal_column(f"'{s.value}'"), sa.literal_column("0")) for s in TO_REVIEW]
     return sa.type_coerce(sa.case(*whens, value=System.review_status, else_=sa.literal_column("1")), sa.Integer)
+
+
+class _GamesFirst(Join):
+    """``games JOIN systems`` (:func:`games_then_systems`), which SQLite is given as ``CROSS JOIN``."""
+
+    inherit_cache = True
+
+
+@compiles(_GamesFirst, "sqlite")
+def _games_first_on_sqlite(element: _GamesFirst, compiler: Any, **kw: Any) -> str:
+    """SQLite keeps the left table of a ``CROSS JOIN`` as the outer loop (its documented way to fix a join's order)."""
+    side = {**kw, "asfrom": True}
+    return (f"{compiler.process(element.left, **side)} CROSS JOIN {compiler.process(element.right, **side)} "
+            f"ON {compiler.process(element.onclause, **kw)}")
+
+
+def games_then_systems() -> Any:
+    """The FROM of the ``name`` order (its first keys are the game's): the games, then each game's systems.
+
+    Read in that order, a page by name is the games' unique index (league, season, match) walked in order and, within
+    each game, the index of its systems' natural names: no sort, whatever the queue's size. Without statistics of
+    the games' table (SQLite's ``PRAGMA optimize`` after an import analyses only the tables its connection asked
+    for), SQLite's planner guessed a large games table and read every system to sort them per page (192,000 VM
+    instructions for the first page at 12,800 systems against 4,000 for the other orders'); its ``CROSS JOIN``
+    keeps the games outside whatever the statistics. PostgreSQL plans the plain join."""
+    return _GamesFirst(Game.__table__, System.__table__, Game.id == System.game_id)
 
 
 def natural_name(column: Any) -> list[Any]:

@@ -4,13 +4,26 @@ id in the sort's direction, names in numeric order within a game)."""
 from __future__ import annotations
 
 import random
+from datetime import datetime, timedelta, timezone
 from typing import Any, Optional
 
 import pytest
+import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from app.api.view_schemas import SystemSummaryOut
 from app.core.errors import InvalidInputError
-from app.db.models import BallEvidence, Doubt, Game, ReviewStatus, System, SystemKind
+from app.db.models import (
+    BallEvidence,
+    Doubt,
+    Game,
+    ReviewDecision,
+    ReviewStatus,
+    System,
+    SystemKind,
+    Triangulation,
+    TriangulationStatus,
+)
 from app.geometry.doubts import LABEL_KIND_SEVERITY, LABEL_KINDS, label_severity
 from app.services.curation import queue
 from app.services.curation.queue import SystemFilters
@@ -208,3 +221,64 @@ def test_a_held_system_spares_reading_its_sort_keys(db_session: Session, many: l
 
 def test_every_label_kind_has_a_severity() -> None:
     assert set(LABEL_KIND_SEVERITY) == set(LABEL_KINDS) and min(LABEL_KIND_SEVERITY.values()) >= 1
+
+
+def _decided(db_session: Session, many: list[System]) -> None:
+    """``many`` with what a queue row shows beside the stored figures: review decisions (decided, reset to pending
+    with a reason, accepted by a batch), 3D balls (one triangulation without a ball), doubt counts and
+    assignments; the session's objects expired, so that the ORM rows are read back as the plain rows are."""
+    when = datetime(2026, 11, 29, 21, 30, 15, 123456, tzinfo=timezone.utc)
+    for i, s in enumerate(many):
+        if s.review_status != ReviewStatus.PENDING or i % 7 == 0:
+            db_session.add(ReviewDecision(
+                system_id=s.id, status=s.review_status, comment=f"comment {i}" if i % 2 else "",
+                decided_at=None if s.review_status == ReviewStatus.PENDING else when + timedelta(minutes=i),
+                reset_reason="a view was recalibrated" if s.review_status == ReviewStatus.PENDING else None,
+                batch_id=3 if i % 5 == 0 and s.review_status == ReviewStatus.ACCEPTED else None))
+        if i % 3:
+            db_session.add(Triangulation(
+                system_id=s.id, status=TriangulationStatus.TRIANGULATED if i % 9 else TriangulationStatus.NO_PAIR_KEPT,
+                ball3d=[1.5 * i, -2.25, -0.11] if i % 9 else None, sigma_m=0.01 * i if i % 9 else None, tau_px=20.0,
+                rule="pairs", min_baseline_m=1.0))
+        s.doubt_counts = {"ball_off_consensus": 1} if i % 4 == 0 else {}
+        s.ball_evidence_reasons = ["three views agree"] if i % 2 else []
+        s.views_total, s.views_calibrated, s.views_admitted, s.views_labelled = 4, 3 + i % 2, 2 + i % 3, i % 5
+        if i % 6 == 1:
+            s.assigned_at, s.assigned_by = when, "lead"
+    db_session.flush()
+    db_session.expire_all()
+
+
+@pytest.mark.parametrize("sort", ["-severity", "name", "-doubts", "lowest_jac"])
+def test_the_apis_plain_rows_answer_what_the_orm_rows_answer(db_session: Session, many: list[System],
+                                                             sort: str) -> None:
+    """The queue's API reads its rows plain (``list_system_rows``, ``SystemSummaryOut.of_row``): every page, by offset
+    and by cursor and under each filter, holds the systems, totals, counts and cursors of ``list_systems`` and each
+    row answers what ``SystemSummaryOut.of`` makes of the ORM objects; a page's ``prev_cursor`` is there exactly when
+    a row lies before it."""
+    _decided(db_session, many)
+    for filters in FILTERS.values():
+        conds = queue._system_conditions(filters)
+        pages = [{"offset": o} for o in range(0, 70, 7)]
+        cursor = queue.list_systems(db_session, filters, sort, limit=7).next_cursor
+        if cursor:
+            pages += [{"after": cursor}, {"before": cursor}, {"after": cursor, "offset": 3}]
+        for page in pages:
+            orm = queue.list_systems(db_session, filters, sort, limit=7, **page)
+            plain = queue.list_system_rows(db_session, filters, sort, limit=7, **page)
+            assert [s.id for s in orm.items] == [r["id"] for r in plain.items]
+            assert (orm.total, orm.counts, orm.next_cursor, orm.prev_cursor) == \
+                (plain.total, plain.counts, plain.next_cursor, plain.prev_cursor)
+            assert [SystemSummaryOut.of(s).model_dump(mode="json") for s in orm.items] == \
+                [SystemSummaryOut.of_row(r).model_dump(mode="json") for r in plain.items]
+            if orm.items:
+                first = queue.sort_keys(sort)  # the row before the page's first, looked for in the order
+                keys = db_session.execute(sa.select(*(k.expr for k in first)).select_from(System).join(
+                    Game, Game.id == System.game_id).where(System.id == orm.items[0].id)).one()
+                before = queue._walk(db_session, sort, conds, tuple(keys), "before", 1)
+                assert (orm.prev_cursor is not None) == bool(before), page
+    shown = [SystemSummaryOut.of_row(r) for r in queue.list_system_rows(db_session, SystemFilters(), sort,
+                                                                          limit=100).items]
+    assert {s.review.status for s in shown} >= {ReviewStatus.PENDING, ReviewStatus.ACCEPTED}
+    assert any(s.review.reset_reason for s in shown) and any(s.review.batch_id for s in shown)
+    assert any(s.ball3d for s in shown) and any(s.ball3d is None for s in shown)
