@@ -362,7 +362,8 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
                      ) -> tuple[Optional[int], Optional[int]]:
     """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort`` (None at either end, or
     for an unknown id). ``held``: the system as its session holds it committed (an edit's answer): when every sort
-    key is a column of the system, its keys are taken from it instead of read (one statement fewer).
+    key is a column of the system or says its value for one (``SortKey.of_system``), its keys are taken from it
+    instead of read (one statement fewer).
 
     The system itself need not match the filters (it may just have been reviewed out of a
     "pending" queue): its neighbours are then those it would have if it did.
@@ -385,11 +386,13 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
 
 def _held_keys(held: System, sort: SystemSort) -> Optional[tuple[Any, ...]]:
     """The sort keys of ``held`` (a system as its session holds it committed) when every key is a column of the
-    system, else None (:func:`queue_neighbours` reads them)."""
+    system or says its value for one (``SortKey.of_system``: the default order's work-to-do-first key), else None
+    (:func:`queue_neighbours` reads them)."""
     keys = sort_keys(sort)
-    if not all(getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key") for k in keys):
+    if not all(k.of_system is not None or (getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key"))
+               for k in keys):
         return None
-    return tuple(getattr(held, k.expr.key) for k in keys)
+    return tuple(k.of_system(held) if k.of_system is not None else getattr(held, k.expr.key) for k in keys)
 
 
 @functools.lru_cache(maxsize=256)
