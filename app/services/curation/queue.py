@@ -39,8 +39,9 @@ and no ORDER BY names a key its slice holds equal (SQLite would sort instead of 
 from __future__ import annotations
 
 import functools
+import operator
 from dataclasses import dataclass
-from typing import Any, Literal, Optional
+from typing import Any, Callable, Literal, Optional, get_args
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
@@ -388,11 +389,23 @@ def _held_keys(held: System, sort: SystemSort) -> Optional[tuple[Any, ...]]:
     """The sort keys of ``held`` (a system as its session holds it committed) when every key is a column of the
     system or says its value for one (``SortKey.of_system``: the default order's work-to-do-first key), else None
     (:func:`queue_neighbours` reads them)."""
+    getters = _HELD_GETTERS.get(sort)
+    return None if getters is None else tuple(get(held) for get in getters)
+
+
+def _held_getters(sort: SystemSort) -> Optional[tuple[Callable[[System], Any], ...]]:
+    """How :func:`_held_keys` takes each key of ``sort`` (:func:`sort_keys`) from a system, None when a key is neither
+    a column of the system nor says its value for one."""
     keys = sort_keys(sort)
     if not all(k.of_system is not None or (getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key"))
                for k in keys):
         return None
-    return tuple(k.of_system(held) if k.of_system is not None else getattr(held, k.expr.key) for k in keys)
+    return tuple(k.of_system if k.of_system is not None else operator.attrgetter(k.expr.key) for k in keys)
+
+
+#: :func:`_held_getters` of every sort, made once: the keys' SQL expressions (:func:`sort_keys`) cost more to build
+#: than an edit's answer spends on the rest of its neighbours.
+_HELD_GETTERS = {sort: _held_getters(sort) for sort in get_args(SystemSort)}
 
 
 @functools.lru_cache(maxsize=256)
