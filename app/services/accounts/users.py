@@ -445,10 +445,10 @@ def _token_user_statement() -> sa.Select:
     """:func:`token_user`'s statement (parameters ``token_hash`` and ``now``): :func:`resolve_token`'s conditions on
     the tables' columns."""
     tokens, users = (cast(sa.Table, m.__table__) for m in (ApiToken, User))
-    t, u, now = tokens.c, users.c, sa.bindparam("now")
+    t, u = tokens.c, users.c
     return (sa.select(u.id, u.name, u.role, t.last_used_at).join_from(tokens, users, t.user_id == u.id)
             .where(t.token_hash == sa.bindparam("token_hash"), u.disabled.is_(False), t.revoked_at.is_(None),
-                   sa.or_(t.expires_at.is_(None), t.expires_at > now)))
+                   sa.or_(t.expires_at.is_(None), t.expires_at > sa.bindparam("now"))))
 
 
 def resolve_session_user(session: Session, user_id: int, generation: int) -> Optional[User]:
