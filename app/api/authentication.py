@@ -88,8 +88,8 @@ def resolve_principal(session_factory: Callable[[], Any], authorization: Optiona
             return None
         with session_factory() as db:
             reads_on_their_own(db)  # one lookup: no transaction around it
-            user = users.resolve_token(db, token.strip())
-            return Principal(user.id, user.name, user.role.value, "token") if user else None
+            found = users.token_user(db, token.strip())
+            return Principal(*found, "token") if found else None
     uid, gen, at = cookie_session.get("uid"), cookie_session.get("gen"), cookie_session.get("at")
     if not isinstance(uid, int) or not isinstance(gen, int):
         return None

@@ -37,9 +37,10 @@ def get_session(request: Request) -> Iterator[Session]:
             end_reads(session)
 
 
-def edit_context(request: Request) -> EditContext:
+async def edit_context(request: Request) -> EditContext:
     """A new context for the request's edit (``app.services.curation.writing.EditContext``) with the process's turns
-    of recomputing edits (``app.state.edit_slots``); the route reads its audit entry's id from it afterwards."""
+    of recomputing edits (``app.state.edit_slots``); the route reads its audit entry's id from it afterwards. Async:
+    it only makes an object, so it runs on the event loop, not through a hop to the thread pool of its own."""
     return EditContext(slots=getattr(request.app.state, "edit_slots", None))
 
 

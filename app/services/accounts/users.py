@@ -21,6 +21,7 @@ them with a session of their own).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import re
 import secrets
@@ -420,6 +421,34 @@ def resolve_token(session: Session, token: str) -> Optional[User]:
             # fail for a timestamp, which the next request refreshes. Read the user again after the rollback.
             return session.get(User, user_id)
     return user
+
+
+def token_user(session: Session, token: str) -> Optional[tuple[int, str, str]]:
+    """``(id, name, role)`` of the user :func:`resolve_token` finds for ``token`` (the same conditions), read by one
+    statement of the tables' columns built once: what every request sent with a token asks first, where building and
+    loading the two mapped objects was most of its look-up's cost. When the token's ``last_used_at`` is due for its
+    refresh, :func:`resolve_token` looks it up again and refreshes it."""
+    if not token.startswith(TOKEN_PREFIX) or len(token) > 200:
+        return None
+    now = utcnow()
+    row = session.execute(_token_user_statement(), {"token_hash": hash_token(token), "now": now}).first()
+    if row is None:
+        return None
+    if row.last_used_at is None or now - row.last_used_at > TOKEN_USE_RESOLUTION:
+        user = resolve_token(session, token)
+        return None if user is None else (user.id, user.name, user.role.value)
+    return row.id, row.name, row.role.value
+
+
+@functools.cache
+def _token_user_statement() -> sa.Select:
+    """:func:`token_user`'s statement (parameters ``token_hash`` and ``now``): :func:`resolve_token`'s conditions on
+    the tables' columns."""
+    tokens, users = (cast(sa.Table, m.__table__) for m in (ApiToken, User))
+    t, u = tokens.c, users.c
+    return (sa.select(u.id, u.name, u.role, t.last_used_at).join_from(tokens, users, t.user_id == u.id)
+            .where(t.token_hash == sa.bindparam("token_hash"), u.disabled.is_(False), t.revoked_at.is_(None),
+                   sa.or_(t.expires_at.is_(None), t.expires_at > sa.bindparam("now"))))
 
 
 def resolve_session_user(session: Session, user_id: int, generation: int) -> Optional[User]:

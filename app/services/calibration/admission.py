@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import sqlalchemy as sa
+
 from app.core.config import Settings
 from app.datasets.records import CalibrationFields
 from app.db.models import JAC_COLUMNS, Calibration, CalibrationStatus
@@ -49,16 +51,18 @@ def _admitted(status: CalibrationStatus, camera: Any, flags: Any, jac: float | N
     return jac_admitted(jac, settings.admit_jac_min)
 
 
-def admitted_jac_sql(settings: Settings) -> Any:
+def admitted_jac_sql(settings: Settings, table: sa.Table | None = None) -> Any:
     """The admission rule of :func:`app.geometry.jac.jac_admitted` as one SQL expression on ``calibrations``:
     the JaC column of ``settings.admit_jac_gamma`` strictly above ``settings.admit_jac_min`` (NULL, no JaC,
     is never admitted: SQL's comparison with NULL is not true). Status, camera and flags are the caller's
-    other conditions, as in :func:`is_admitted`.
+    other conditions, as in :func:`is_admitted`. ``table``: the ``calibrations`` table, for a statement of the
+    table's columns (None: the mapped class's attribute).
 
     Raises:
         ValueError: the gamma is not one of the stored :data:`JAC_GAMMAS`.
     """
-    return getattr(Calibration, JAC_COLUMNS[admission_gamma(settings)]) > settings.admit_jac_min
+    name = JAC_COLUMNS[admission_gamma(settings)]
+    return (getattr(Calibration, name) if table is None else table.c[name]) > settings.admit_jac_min
 
 
 def admission_args(settings: Settings) -> dict[str, Any]:

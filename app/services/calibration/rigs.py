@@ -7,7 +7,7 @@ datasets (frames from many stadiums) never use one.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Collection, Iterable, Sequence
+from typing import Any, Collection, Iterable, Sequence, cast
 
 import numpy as np
 import sqlalchemy as sa
@@ -78,18 +78,20 @@ _RIG_STATEMENTS: dict[tuple[float, float], sa.Select] = {}
 
 def _rig_statement(settings: Settings) -> sa.Select:
     """:func:`rig_rows`'s statement for the settings' admission rule, taking the game's id as ``game_id``; built once
-    per rule (building it and its cache key cost as much as running it)."""
+    per rule (building it and its cache key cost as much as running it). Of the tables' columns, not the mapped
+    classes': the same SQL and values, without the ORM's compilation of the statement on every edit that reads it."""
     key = (admission_gamma(settings), settings.admit_jac_min)
     stmt = _RIG_STATEMENTS.get(key)
     if stmt is None:
+        cal, frame, system = (cast(sa.Table, m.__table__) for m in (Calibration, Frame, System))
         stmt = _RIG_STATEMENTS[key] = (
-            select(Calibration.frame_id, Frame.role, Calibration.camera["position_meters"])
-            .join(Frame, Frame.id == Calibration.frame_id)
-            .join(System, System.id == Frame.system_id)
-            .where(System.game_id == sa.bindparam("game_id"), Calibration.status == CalibrationStatus.CALIBRATED,
-                   Calibration.camera.is_not(None), admitted_jac_sql(settings),
-                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%'),
-                   sa.cast(Calibration.flags, sa.Text).not_like(f'%"{PLAYERS_FLAG}"%')))
+            select(cal.c.frame_id, frame.c.role, cal.c.camera["position_meters"])
+            .join(frame, frame.c.id == cal.c.frame_id)
+            .join(system, system.c.id == frame.c.system_id)
+            .where(system.c.game_id == sa.bindparam("game_id"), cal.c.status == CalibrationStatus.CALIBRATED,
+                   cal.c.camera.is_not(None), admitted_jac_sql(settings, cal),
+                   sa.cast(cal.c.flags, sa.Text).not_like(f'%"{RIG_FLAG}"%'),
+                   sa.cast(cal.c.flags, sa.Text).not_like(f'%"{PLAYERS_FLAG}"%')))
     return stmt
 
 

@@ -39,8 +39,9 @@ and no ORDER BY names a key its slice holds equal (SQLite would sort instead of 
 from __future__ import annotations
 
 import functools
+import operator
 from dataclasses import dataclass
-from typing import Any, Generic, Literal, Optional, TypeVar
+from typing import Any, Callable, Generic, Literal, Optional, TypeVar, get_args
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, contains_eager, joinedload, selectinload
@@ -419,7 +420,8 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
                      ) -> tuple[Optional[int], Optional[int]]:
     """``(prev_id, next_id)`` of a system in the queue ``filters`` + ``sort`` (None at either end, or
     for an unknown id). ``held``: the system as its session holds it committed (an edit's answer): when every sort
-    key is a column of the system, its keys are taken from it instead of read (one statement fewer).
+    key is a column of the system or says its value for one (``SortKey.of_system``), its keys are taken from it
+    instead of read (one statement fewer).
 
     The system itself need not match the filters (it may just have been reviewed out of a
     "pending" queue): its neighbours are then those it would have if it did.
@@ -442,11 +444,25 @@ def queue_neighbours(session: Session, system_id: int, filters: SystemFilters = 
 
 def _held_keys(held: System, sort: SystemSort) -> Optional[tuple[Any, ...]]:
     """The sort keys of ``held`` (a system as its session holds it committed) when every key is a column of the
-    system, else None (:func:`queue_neighbours` reads them)."""
+    system or says its value for one (``SortKey.of_system``: the default order's work-to-do-first key), else None
+    (:func:`queue_neighbours` reads them)."""
+    getters = _HELD_GETTERS.get(sort)
+    return None if getters is None else tuple(get(held) for get in getters)
+
+
+def _held_getters(sort: SystemSort) -> Optional[tuple[Callable[[System], Any], ...]]:
+    """How :func:`_held_keys` takes each key of ``sort`` (:func:`sort_keys`) from a system, None when a key is neither
+    a column of the system nor says its value for one."""
     keys = sort_keys(sort)
-    if not all(getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key") for k in keys):
+    if not all(k.of_system is not None or (getattr(k.expr, "class_", None) is System and hasattr(k.expr, "key"))
+               for k in keys):
         return None
-    return tuple(getattr(held, k.expr.key) for k in keys)
+    return tuple(k.of_system if k.of_system is not None else operator.attrgetter(k.expr.key) for k in keys)
+
+
+#: :func:`_held_getters` of every sort, made once: the keys' SQL expressions (:func:`sort_keys`) cost more to build
+#: than an edit's answer spends on the rest of its neighbours.
+_HELD_GETTERS = {sort: _held_getters(sort) for sort in get_args(SystemSort)}
 
 
 @functools.lru_cache(maxsize=256)

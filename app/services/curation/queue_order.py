@@ -11,7 +11,7 @@ import binascii
 import json
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Callable, Literal, Optional
 
 import sqlalchemy as sa
 from sqlalchemy.ext.compiler import compiles
@@ -62,6 +62,12 @@ def games_then_systems() -> Any:
     return _GamesFirst(Game.__table__, System.__table__, Game.id == System.game_id)
 
 
+def review_first_of(system: System) -> int:
+    """:func:`to_review_first` of a ``System`` object: 0 when its ``review_status`` is one of :data:`TO_REVIEW`, else
+    1."""
+    return 0 if system.review_status in TO_REVIEW else 1
+
+
 def natural_name(column: Any) -> list[Any]:
     """SQL sort keys of a name with numeric names in numeric order."""
     # numeric names ("2.png", "10.png") in numeric order: shorter first, then text
@@ -80,6 +86,9 @@ class SortKey:
     #: its rows beyond a value are read as one slice per value (an equality, so that the keys after it are read in
     #: their index's order whatever their direction), not as a range.
     values: tuple[Any, ...] = ()
+    #: For a key that is no column of the system: its value for a ``System`` object, the same the expression gives
+    #: of the system's stored row (what ``queue.queue_neighbours`` takes from the system an edit holds, not read).
+    of_system: Optional[Callable[[Any], Any]] = None
 
     def clause(self, reverse: bool = False, plain: bool = False) -> Any:
         """The ORDER BY term; ``plain``: without the NULLs placement (for rows where the key is known
@@ -119,7 +128,8 @@ def sort_keys(sort: SystemSort) -> list[SortKey]:
         cols = [Game.league, Game.season, Game.match, *natural_name(System.name)]
         return [SortKey(c, desc) for c in cols] + [tie]
     if key == "severity":  # the work to do first in either direction, then severity, the error, the doubts' count
-        return [SortKey(to_review_first(), values=(0, 1)), SortKey(System.label_severity, desc),
+        return [SortKey(to_review_first(), values=(0, 1), of_system=review_first_of),
+                SortKey(System.label_severity, desc),
                 SortKey(System.worst_error_px, desc, True), SortKey(System.label_doubts, desc), tie]
     if key == "ball_evidence":  # the enum's order, the best backed first (vouched ... none); ties by the error
         rank = sa.type_coerce(sa.case({t.value: i for i, t in enumerate(BallEvidence)}, value=System.ball_evidence,

@@ -211,3 +211,35 @@ def test_names_that_read_as_one_are_refused_by_the_database_too(db_session: Sess
     with pytest.raises(InvalidInputError) as refused:
         users.create_user(db_session, "zoe.", "annotator", "pw")
     assert refused.value.field == "name" and "'Zoe' exists" in str(refused.value)
+
+
+def test_token_user_finds_whom_resolve_token_finds_and_records_the_use(db_session: Session) -> None:
+    """What a request's principal is read from (``token_user``, one statement of the tables' columns) answers as
+    ``resolve_token``: a working token's user, none for a wrong, revoked, expired token or a disabled user; its first
+    use, and a use after the resolution, is recorded."""
+    def same(token: str) -> tuple[int, str, str] | None:
+        got = users.token_user(db_session, token)
+        user = users.resolve_token(db_session, token)
+        assert got == (None if user is None else (user.id, user.name, user.role.value))
+        return got
+
+    user, token = users.create_user(db_session, "kim", "reviewer", "pw")
+    row = db_session.scalar(sa.select(ApiToken).where(ApiToken.token_hash == users.hash_token(token)))
+    assert users.token_user(db_session, token) == (user.id, "kim", "reviewer") and row.last_used_at is not None
+    first_use = row.last_used_at
+    assert same(token) == (user.id, "kim", "reviewer") and row.last_used_at == first_use  # within the resolution
+    row.last_used_at = first_use - users.TOKEN_USE_RESOLUTION - timedelta(seconds=1)
+    db_session.commit()
+    assert users.token_user(db_session, token) == (user.id, "kim", "reviewer")
+    assert row.last_used_at > first_use - users.TOKEN_USE_RESOLUTION  # recorded again
+    assert same(token[:-1]) is None and same("not-a-v3d-token") is None and same("v3d_" + "x" * 300) is None
+    expiring = users.issue_token(db_session, "kim", expires_days=1)
+    assert same(expiring.token) == (user.id, "kim", "reviewer")
+    db_session.get(ApiToken, expiring.id).expires_at = utcnow() - timedelta(seconds=1)
+    db_session.commit()
+    assert same(expiring.token) is None
+    revoked = users.issue_token(db_session, "kim")
+    users.revoke_token(db_session, "kim", revoked.id)
+    assert same(revoked.token) is None and same(token) is not None
+    users.set_disabled(db_session, "kim")
+    assert same(token) is None

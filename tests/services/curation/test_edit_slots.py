@@ -169,6 +169,7 @@ def test_edit_slots_count_turns_and_refuse_negative_figures() -> None:
 
 
 def test_the_apps_edits_carry_the_settings_slots(tmp_path: Path) -> None:
+    import asyncio
     from types import SimpleNamespace
 
     from app.api.deps import edit_context
@@ -178,7 +179,7 @@ def test_the_apps_edits_carry_the_settings_slots(tmp_path: Path) -> None:
                         edit_slots=3, edit_slot_wait_s=0.25)
     app = create_app(settings)
     request = SimpleNamespace(app=app)
-    first, second = edit_context(request), edit_context(request)  # type: ignore[arg-type]  # what FastAPI passes
+    first, second = (asyncio.run(edit_context(request)) for _ in range(2))  # type: ignore[arg-type]  # what FastAPI passes
     assert first.slots is not None and (first.slots.slots, first.slots.wait_s) == (3, 0.25)
     assert second.slots is first.slots and second is not first  # one set of turns per app (process), a context per edit
     assert Settings(_env_file=None).edit_slots == 1
