@@ -24,7 +24,14 @@ Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation o
 3. the ball's sigma is the square root of the largest eigenvalue of the least-squares covariance of the views of the
    pairs left (:func:`app.geometry.spread.position_covariance`, metres along its least certain direction); the ball
    stands when that sigma is within ``max_sigma_m`` (else every pair left is dropped with ``sigma_above_bound``) and
-   when it lies within :data:`VOLUME_SIGMAS` sigmas of the play volume (else ``outside_play_volume``).
+   when it lies within :data:`VOLUME_SIGMAS` sigmas of the play volume (else ``outside_play_volume``);
+4. a ball left resting on one pair whose rays meet only in the outer part of tau (its error above
+   ``lone_pair_max_error_tau`` of tau, :data:`LONE_PAIR_MAX_ERROR_TAU` in the recomputation) is refused (reason
+   ``lone_pair_at_tau_edge``): a right pair's rays meet well within tau (every one-pair right ball of the sets that
+   chose it within 0.61 tau, 95 % of two-view pairs within 0.26 tau: ``benchmarks/VOUCH.md``), while two rays that
+   cross by chance (a replay of another instant, a label on another object along the epipolar band) meet anywhere
+   within it; with one pair no other view checks which of the two it is, and the ball such a pair makes is metres
+   off when it is the chance crossing.
 
 World frame: SoccerNet (metres, origin at the centre spot, z down). Pixels at 1920 width (``REFERENCE_WIDTH_PX``).
 """
@@ -55,6 +62,13 @@ GATE_CHI2 = 11.345
 #: placed a little outside by its own uncertainty may be in the volume; one placed farther cannot.
 VOLUME_SIGMAS = 3.0
 
+#: A ball resting on one pair is refused when that pair's error is above this fraction of tau (rule 4 of the module
+#: docstring). Chosen on the four sets ``benchmarks/VOUCH.md`` names (2026-11-29, late night: dev-large, seed-204,
+#: seed-201-s1301, seed-202-s1301): their 453 one-pair right balls meet within 0.61 tau (all but two within 0.5), their
+#: two wrong one-pair balls (desynchronised replays, 2.2 and 10.7 m off) at 0.74 and 0.97 tau. On four held-out sets
+#: it withheld no wrong ball and two right ones whose pairs meet at 0.71 and 0.74 tau: the margin is thin.
+LONE_PAIR_MAX_ERROR_TAU = 0.7
+
 # Relative eigenvalue level below which an information matrix fixes no point (a direction it knows nothing of).
 _SINGULAR_EPS = 1e-12
 
@@ -65,8 +79,8 @@ class EvidenceBall:
 
     Attributes:
         result: the triangulation with the pairs judged (reasons ``players_disagree``, ``beyond_joint_sigma``,
-            ``sigma_above_bound`` and ``outside_play_volume`` added where they apply) and the fused ball, or status
-            ``no_pair_kept``.
+            ``sigma_above_bound``, ``outside_play_volume`` and ``lone_pair_at_tau_edge`` added where they apply) and
+            the fused ball, or status ``no_pair_kept``.
         sigma_m: the ball's sigma (metres, one standard deviation along its least certain direction) of the pairs
             left, also when the bound refused the ball (what refused it); None without pairs left or when their
             views fix no point.
@@ -127,7 +141,8 @@ def _fixes_point(info: np.ndarray) -> bool:
 def judge_by_evidence(observations: Sequence[BallObservation], triangulated: TriangulationResult,
                       sigma_px_1920: Mapping[Any, float], *, max_sigma_m: float,
                       distance_to_volume_m: Callable[[np.ndarray], float] | None = None,
-                      players_disagree: Callable[[Any, Any], bool] | None = None) -> EvidenceBall:
+                      players_disagree: Callable[[Any, Any], bool] | None = None,
+                      lone_pair_max_error_tau: float | None = None) -> EvidenceBall:
     """Judge the pairs the paper's rules kept (``triangulated``: :func:`app.geometry.triangulation.triangulate_ball`
     without weights, play volume or parallax filter) by their uncertainty, and fuse the ball (module docstring).
 
@@ -141,6 +156,8 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
             (``app.geometry.pitch.distance_to_play_volume``); None: no play volume.
         players_disagree: view ids ``(a, b)`` of a kept pair -> whether their cameras disagree on the players both
             views see (asked once per kept pair, before anything else); None: no such evidence.
+        lone_pair_max_error_tau: a ball left resting on one pair whose error (``PairResult.error``, the rule's
+            units) is above this fraction of ``triangulated.tau_px`` is refused (rule 4); None: no such check.
 
     Returns:
         An :class:`EvidenceBall`; ``triangulated`` unchanged (and sigma None) when it has no ball.
@@ -199,6 +216,10 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
         return refused("sigma_above_bound", sigma)
     if distance_to_volume_m is not None and distance_to_volume_m(ball) > VOLUME_SIGMAS * sigma:
         return refused("outside_play_volume", sigma)
+    if lone_pair_max_error_tau is not None and len(infos) == 1:
+        error = pairs[next(iter(infos))].error
+        if error is not None and error > lone_pair_max_error_tau * triangulated.tau_px:
+            return refused("lone_pair_at_tau_edge", sigma)
     ball.setflags(write=False)
     errors = {o.view_id: reprojection_error_px(o.camera, ball, o.point_px) for o in observations}
     return EvidenceBall(dataclasses.replace(triangulated, status=STATUS_TRIANGULATED, point=ball, pairs=tuple(pairs),

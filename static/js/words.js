@@ -272,6 +272,10 @@ export const WORDS = /*WORDS*/{
   "sigma_above_bound": {
    "chip": "too uncertain",
    "means": "the ball these pairs make is less certain than the bound (V3D_BALL_MAX_SIGMA_M)"
+  },
+  "lone_pair_at_tau_edge": {
+   "chip": "meets at τ's edge",
+   "means": "the ball would rest on this one pair, whose rays meet only near the limit τ: right pairs meet well within it, rays that cross by chance (a replay of another instant, a label on another object) anywhere in it, and no other view checks which this is; place or confirm a third view"
   }
  },
  "rule": {

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.geometry.evidence import judge_by_evidence
+from app.geometry.evidence import LONE_PAIR_MAX_ERROR_TAU, judge_by_evidence
 from app.geometry.pitch import distance_to_play_volume
 from app.geometry.triangulation import BallObservation, triangulate_ball
 from tests.geometry.test_triangulation import BALL, look_at, observe
@@ -111,3 +111,53 @@ def test_a_pair_whose_cameras_disagree_on_their_players_makes_no_ball():
     assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.05
     assert {(p.view_a, p.view_b): p.reason for p in judged.result.pairs} == {
         ("v0", "v1"): "players_disagree", ("v0", "v2"): None, ("v1", "v2"): None}
+
+
+def _replay_of_another_instant(error_tau: tuple[float, float]):
+    """Two views: the action's sees the ball at ``BALL``, the replay's the ball 0.1 s on (moved up and across); the
+    moved ball is the first along that motion whose two rays meet with a pair error (px at 1920 width) within
+    ``error_tau`` of tau (20 px). Returns the observations and the paper's triangulation of them."""
+    action = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
+    replay = look_at([70.0, 4.0, -15.0], BALL, focal=2500.0)
+    motion = np.array([0.3, 0.8, -0.5]) / np.linalg.norm([0.3, 0.8, -0.5])
+    for step in np.arange(0.05, 8.0, 0.05):
+        obs = [observe([action])[0], BallObservation("v1", replay, observe([replay], BALL + step * motion)[0].point_px,
+                                                     1920.0)]
+        paper = _paper(obs)
+        error = paper.pairs[0].error
+        if paper.point is not None and error is not None and error_tau[0] * 20.0 < error < error_tau[1] * 20.0:
+            return obs, paper
+    raise AssertionError("no moved ball gives that pair error")
+
+
+def test_a_lone_pair_meeting_at_the_edge_of_tau_makes_no_ball():
+    """A replay of another instant whose ray meets the action's at 0.75-0.95 tau: the paper keeps the pair and its
+    ball lies metres off; judged by evidence with the lone-pair bound the ball is refused (``lone_pair_at_tau_edge``);
+    without it (None) the same ball stands. A replay of the same instant (the pair within the bound) keeps its ball."""
+    obs, paper = _replay_of_another_instant((0.75, 0.95))
+    sig = {"v0": 2.0, "v1": 2.0}
+    assert paper.point is not None and np.linalg.norm(paper.point - BALL) > 1.0
+    loose = judge_by_evidence(obs, paper, sig, max_sigma_m=50.0)
+    assert loose.result.point is not None and np.linalg.norm(loose.result.point - BALL) > 1.0
+    judged = judge_by_evidence(obs, paper, sig, max_sigma_m=50.0, lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
+    assert judged.result.point is None and judged.result.status == "no_pair_kept"
+    assert [p.reason for p in judged.result.pairs] == ["lone_pair_at_tau_edge"]
+    assert judged.sigma_m is not None  # the refused ball's sigma is still told
+    same = observe([look_at([0.0, 75.0, -22.0], BALL, focal=3000.0), look_at([70.0, 4.0, -15.0], BALL, focal=2500.0)],
+                   noise_px=1.0)
+    kept = judge_by_evidence(same, _paper(same), sig, max_sigma_m=50.0, lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
+    assert kept.result.point is not None and np.linalg.norm(kept.result.point - BALL) < 0.2
+
+
+def test_the_lone_pair_bound_leaves_a_ball_of_several_pairs_alone():
+    """The same replay beside a third view of the action's instant: the replay's pair with it is above tau, its pair
+    with the action's beyond the joint sigma of the pair left; the ball rests on the two views of the instant, whose
+    pair meets well within tau, and stands where the ball is."""
+    obs, _ = _replay_of_another_instant((0.75, 0.95))
+    third = look_at([10.0, -55.0, -12.0], BALL, focal=4000.0)
+    three = [*obs, BallObservation("v2", third, observe([third])[0].point_px, 1920.0)]
+    paper = _paper(three)
+    judged = judge_by_evidence(three, paper, {"v0": 2.0, "v1": 2.0, "v2": 2.0}, max_sigma_m=50.0,
+                               lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
+    assert [p.reason for p in judged.result.pairs] == ["beyond_joint_sigma", None, "error_above_tau"]
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.01

@@ -31,7 +31,7 @@ from app.geometry.calibration.players import LINES_CONTRADICTED_SIGMA
 from app.geometry.camera import Camera
 from app.geometry.doubts.detected import CENTRE_NOISE, MIN_SIGMA_PX
 from app.geometry.doubts.detections import Detection
-from app.geometry.evidence import judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
+from app.geometry.evidence import LONE_PAIR_MAX_ERROR_TAU, judge_by_evidence, kept_pairs_sigma_m, view_sigma_px
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.pitch import distance_to_play_volume, within_play_volume
 from app.geometry.triangulation import BallObservation, PairGeometry, TriangulationResult, triangulate_ball
@@ -147,7 +147,8 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
     Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
     their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
-    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty).
+    sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty, a ball
+    resting on one pair whose rays meet only at the edge of tau, ``LONE_PAIR_MAX_ERROR_TAU``).
     ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed);
     ``players``: where the players' disagreement of a pair comes from (:func:`players_disagree`; None: the
     process's memo)."""
@@ -159,7 +160,8 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
                                  min_baseline_m=settings.min_baseline_m, min_parallax_deg=0.0, geometry=geometry)
         disagree = players_disagree(system, {o.view_id: o.camera for o in observations}, players)
         judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
-                                   distance_to_volume_m=distance_to_play_volume, players_disagree=disagree)
+                                   distance_to_volume_m=distance_to_play_volume, players_disagree=disagree,
+                                   lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
         return judged.result, judged.sigma_m
     weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,

@@ -18,7 +18,10 @@ from app.geometry.doubts import LABEL_KINDS, DoubtSettings
 from app.services.curation import editing, states
 from app.services.derivation import doubts as doubt_service
 from app.services.derivation.doubts import doubt_settings
-from tests.api.factories import BALL, make_game, make_system
+from tests.api.factories import BALL, CENTRES, ball_box, make_game, make_system
+
+#: Two of the default scene's cameras: the main one and a replay angle.
+CENTRES_TWO = CENTRES[:2]
 
 
 def _stored(session: Session, system_id: int) -> System:
@@ -490,3 +493,43 @@ def test_boxes_placed_from_one_labelled_ray_and_two_detected_views_whose_pairs_t
     for d in found:
         assert d.suggestion is not None and d.suggestion["action"] == "snap_box" and "no_key" not in d.evidence
         assert "No fix key" not in d.message
+
+
+def test_a_two_view_ball_whose_rays_meet_only_at_the_edge_of_tau_is_withheld(db_session: Session,
+                                                                              db_settings: Settings) -> None:
+    """Two labelled views whose rays cross by chance, as a replay of another instant's do: the replay's label moved
+    across its image until the pair's error lies in the outer part of tau (0.75-0.95 tau). The paper's rules keep the
+    pair and make a ball; the ball's rule refuses it (``lone_pair_at_tau_edge``): no 3D ball, tier none, the pair's
+    reason stored for the page. The same views with the label a few px off (well within tau) keep their ball."""
+    from app.services.derivation.recompute import recompute_system
+    from app.services.evaluation.ball_yield import paper_ball
+
+    scene = make_system(db_session, db_settings, make_game(db_session), centres=CENTRES_TWO)
+    system = _stored(db_session, scene.system_id)
+    replay = system.frames[1]
+    true_box = ball_box(scene.cameras[1])
+    tau = db_settings.triangulation_tau_px
+    found = None
+    for shift in np.arange(1.0, 60.0, 0.5):
+        replay.ball_label.box = [true_box[0], true_box[1] + shift, true_box[2], true_box[3] + shift]
+        recompute_system(db_session, system, db_settings)
+        pair = system.triangulation.pairs[0]
+        if pair.error_px is not None and 0.75 * tau < pair.error_px < 0.95 * tau:
+            found = shift
+            break
+    assert found is not None, "no shift puts the pair's error in the outer part of tau"
+    db_session.commit()
+    system = _stored(db_session, scene.system_id)
+    tri = system.triangulation
+    assert tri.ball3d is None and tri.status.value == "no_pair_kept"
+    assert [p.reason for p in tri.pairs] == ["lone_pair_at_tau_edge"]
+    assert system.ball_evidence.value == "none"
+    assert paper_ball(system, db_settings) is not None  # the paper's rules keep the pair: tau alone passes it
+    # a label a few px off: the pair meets well within tau and the ball stands, near the true one
+    system = _stored(db_session, scene.system_id)
+    system.frames[1].ball_label.box = [true_box[0], true_box[1] + 3.0, true_box[2], true_box[3] + 3.0]
+    recompute_system(db_session, system, db_settings)
+    db_session.commit()
+    tri = _stored(db_session, scene.system_id).triangulation
+    assert tri.pairs[0].error_px < 0.5 * tau
+    assert tri.ball3d is not None and np.linalg.norm(np.subtract(tri.ball3d, BALL)) < 0.5
