@@ -138,6 +138,27 @@ def _fixes_point(info: np.ndarray) -> bool:
     return bool(eig[-1] > 0 and eig[0] > _SINGULAR_EPS * eig[-1])
 
 
+def _kept_informations(pairs: list[PairResult], by_id: Mapping[Any, BallObservation],
+                       sigma_px_1920: Mapping[Any, float],
+                       players_disagree: Callable[[Any, Any], bool] | None) -> dict[int, np.ndarray]:
+    """The information matrix (3, 3; 1/m^2, world frame) of each kept pair of ``pairs`` (by index) from its two views'
+    pixel sigmas (:func:`_information`); a pair whose cameras' players disagree, or whose point lies behind a camera,
+    is dropped in ``pairs`` itself (reasons ``players_disagree``, ``behind_camera``) and has none."""
+    infos: dict[int, np.ndarray] = {}
+    for k, p in enumerate(pairs):
+        if not p.kept or p.point is None:
+            continue
+        if players_disagree is not None and players_disagree(p.view_a, p.view_b):
+            pairs[k] = dataclasses.replace(p, kept=False, reason="players_disagree")
+            continue
+        info = _information((by_id[p.view_a], by_id[p.view_b]), p.point, sigma_px_1920)
+        if info is None:  # the pair's point behind a camera: the paper's rules dropped it already
+            pairs[k] = dataclasses.replace(p, kept=False, reason="behind_camera")
+            continue
+        infos[k] = info
+    return infos
+
+
 def judge_by_evidence(observations: Sequence[BallObservation], triangulated: TriangulationResult,
                       sigma_px_1920: Mapping[Any, float], *, max_sigma_m: float,
                       distance_to_volume_m: Callable[[np.ndarray], float] | None = None,
@@ -170,20 +191,8 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
         raise ValueError(f"max_sigma_m must be positive, got {max_sigma_m!r}")
     if triangulated.point is None:
         return EvidenceBall(triangulated, None)
-    by_id = {o.view_id: o for o in observations}
     pairs = list(triangulated.pairs)
-    infos: dict[int, np.ndarray] = {}
-    for k, p in enumerate(pairs):
-        if not p.kept or p.point is None:
-            continue
-        if players_disagree is not None and players_disagree(p.view_a, p.view_b):
-            pairs[k] = dataclasses.replace(p, kept=False, reason="players_disagree")
-            continue
-        info = _information((by_id[p.view_a], by_id[p.view_b]), p.point, sigma_px_1920)
-        if info is None:  # the pair's point behind a camera: the paper's rules dropped it already
-            pairs[k] = dataclasses.replace(p, kept=False, reason="behind_camera")
-            continue
-        infos[k] = info
+    infos = _kept_informations(pairs, {o.view_id: o for o in observations}, sigma_px_1920, players_disagree)
 
     def drop(ks, reason: str) -> None:
         for k in ks:

@@ -8,7 +8,8 @@ from fastapi import Response
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
 from app.api.answers import json_answer
-from app.api.view_schemas import SystemPageOut, SystemView
+from app.api.queue_schemas import SystemPageOut
+from app.api.view_schemas import SystemView
 
 
 class _Inner(BaseModel):

@@ -15,9 +15,10 @@ from app.api.auth import AnnotatorDep, PrincipalDep
 from app.api.conditional import PRECONDITIONS, IfMatchDep, with_etag
 from app.api.deps import EditDep, SessionDep, SystemDep, SystemIdPath
 from app.api.handoff_schemas import DecisionOut, SystemReviewIn
+from app.api.queue_schemas import SystemPageOut, SystemSummaryOut
 from app.api.routes.frames import name_entry
 from app.api.schemas import INVALID, NOT_FOUND, QueueQuery, SystemListQuery
-from app.api.view_schemas import ReviewOut, SystemPageOut, SystemSummaryOut, SystemView
+from app.api.view_schemas import ReviewOut, SystemView
 from app.db.models import ReviewStatus, UserRole
 from app.db.types import utcnow
 from app.services.curation import assignment, decisions, handoff, presence, queue, writing

@@ -157,7 +157,7 @@ def _queue_from() -> sa.Select[Any]:
     )
 
 
-#: What a queue row shows (``app.api.view_schemas.SystemSummaryOut``), as the columns of one statement: the system's
+#: What a queue row shows (``app.api.queue_schemas.SystemSummaryOut``), as the columns of one statement: the system's
 #: stored figures, its game's name, its review decision (``review_id`` None: never decided) and its 3D ball. Read as
 #: plain rows, not as the four ORM objects of :func:`_queue_from`: building those (their identity map entries, every
 #: column of each, the timestamps' time zones) was most of a 50-row page's cost, and it grew with the rows shown.

@@ -170,6 +170,7 @@ def test_edit_slots_count_turns_and_refuse_negative_figures() -> None:
 
 def test_the_apps_edits_carry_the_settings_slots(tmp_path: Path) -> None:
     import asyncio
+    from concurrent.futures import ThreadPoolExecutor
     from types import SimpleNamespace
 
     from app.api.deps import edit_context
@@ -179,7 +180,11 @@ def test_the_apps_edits_carry_the_settings_slots(tmp_path: Path) -> None:
                         edit_slots=3, edit_slot_wait_s=0.25)
     app = create_app(settings)
     request = SimpleNamespace(app=app)
-    first, second = (asyncio.run(edit_context(request)) for _ in range(2))  # type: ignore[arg-type]  # what FastAPI passes
+    # Each in a thread of its own: a browser test run before on this worker leaves Playwright's event loop running in
+    # the worker's thread, where asyncio.run refuses to start another.
+    with ThreadPoolExecutor(1) as pool:
+        first, second = (pool.submit(asyncio.run, edit_context(request)).result()  # type: ignore[arg-type]  # what FastAPI passes
+                         for _ in range(2))
     assert first.slots is not None and (first.slots.slots, first.slots.wait_s) == (3, 0.25)
     assert second.slots is first.slots and second is not first  # one set of turns per app (process), a context per edit
     assert Settings(_env_file=None).edit_slots == 1

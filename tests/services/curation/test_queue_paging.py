@@ -11,7 +11,7 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from app.api.view_schemas import SystemSummaryOut
+from app.api.queue_schemas import SystemSummaryOut
 from app.core.errors import InvalidInputError
 from app.db.models import (
     BallEvidence,
