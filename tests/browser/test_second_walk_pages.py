@@ -400,6 +400,10 @@ def test_the_statistics_page_shows_each_reviewers_decisions_beside_the_annotator
     assert page.evaluate("() => document.documentElement.scrollWidth <= window.innerWidth")
     last = row.locator("td[data-key=re_reviews]").bounding_box()  # beside the annotator's figures, in the window
     assert last["x"] + last["width"] <= w
+    page.locator(tid("evidence-vouched")).wait_for()  # each tier's meaning within its panel, not under the next one
+    table, panel = page.locator(tid("evidence")), page.locator(f".panel:has({tid('evidence')})")
+    assert table.bounding_box()["x"] + table.bounding_box()["width"] <= (
+        panel.bounding_box()["x"] + panel.bounding_box()["width"])
     csv_text = page.request.get("/api/stats/annotators?format=csv").text()
     assert csv_text.splitlines()[0].endswith("decisions,accepted,rejected,needs_fix,re_reviews")
 
