@@ -109,22 +109,11 @@ def against_state(swaps: list[tuple[Any, str, Any, Any]]) -> Iterator[None]:
 def timing(swaps: list[tuple[Any, str, Any, Any]], pairs: int, edits: int, seed: int) -> dict[str, float]:
     """Median CPU ms per ball edit of each state and the median and quartiles of their paired difference (this
     checkout's less the against one's)."""
-    from sqlalchemy import select
 
-    from app.core.config import Settings
-    from app.db.models import Frame
-    from app.db.session import make_engine, make_session_factory
     from app.services.curation import editing, system_page
-    from benchmarks.load import fresh_database
+    from benchmarks.load import demo_ball_edit
 
-    with fresh_database(None) as url:
-        settings = Settings(database_url=url)
-        engine = make_engine(url)
-        factory = make_session_factory(engine)
-        with factory() as s:
-            frame = next(f for f in s.scalars(select(Frame).order_by(Frame.id))
-                         if f.ball_label is not None and f.ball_label.box is not None and len(f.system.frames) == 4)
-            fid, sid, box = frame.id, frame.system_id, list(frame.ball_label.box)
+    with demo_ball_edit() as (settings, factory, fid, sid, box):
         step = [0]
 
         def edit() -> None:
@@ -151,7 +140,6 @@ def timing(swaps: list[tuple[Any, str, Any, Any]], pairs: int, edits: int, seed:
                     got[state] = (time.thread_time() - t0) * 1000 / edits
                 per[state].append(got[state])
             diffs.append(got["this"] - got["against"])
-        engine.dispose()
     q = statistics.quantiles(diffs, n=4)
     return {"against_ms": statistics.median(per["against"]), "this_ms": statistics.median(per["this"]),
             "difference_ms": statistics.median(diffs), "q1_ms": q[0], "q3_ms": q[2]}

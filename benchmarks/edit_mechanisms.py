@@ -41,16 +41,14 @@ import sqlalchemy as sa
 from sqlalchemy import select
 from sqlalchemy.orm.attributes import set_committed_value
 
-from app.core.config import Settings
-from app.db.models import Frame, PlayerBox
-from app.db.session import make_engine, make_session_factory
+from app.db.models import PlayerBox
 from app.geometry import evidence, spread
 from app.geometry.camera import Camera
 from app.geometry.triangulation import PairGeometryMemo
 from app.services.calibration.players import feet_of, frame_players
 from app.services.curation import editing, system_page, writing
 from app.services.derivation import ball, cameras, doubts, loading, recompute, rows
-from benchmarks.load import fresh_database
+from benchmarks.load import demo_ball_edit
 
 
 @contextlib.contextmanager
@@ -170,14 +168,7 @@ def main() -> None:
     ap.add_argument("--edits", type=int, default=10, help="edits per block")
     ap.add_argument("--only", nargs="*", choices=list(MECHANISMS), help="these mechanisms only (default: every one)")
     args = ap.parse_args()
-    with fresh_database(None) as url:
-        settings = Settings(database_url=url)
-        engine = make_engine(url)
-        factory = make_session_factory(engine)
-        with factory() as s:
-            frame = next(f for f in s.scalars(select(Frame).order_by(Frame.id))
-                         if f.ball_label is not None and f.ball_label.box is not None and len(f.system.frames) == 4)
-            fid, sid, box = frame.id, frame.system_id, list(frame.ball_label.box)
+    with demo_ball_edit() as (settings, factory, fid, sid, box):
         step = [0]
 
         def edit(off: bool) -> None:
@@ -206,7 +197,6 @@ def main() -> None:
                     per[off].append((time.process_time() - t0) * 1000 / args.edits)
             on_ms, off_ms = statistics.median(per[False]), statistics.median(per[True])
             print(f"{current:18s} on {on_ms:6.2f} ms/edit  off {off_ms:6.2f} ms/edit  gain {off_ms - on_ms:+6.2f} ms")
-        engine.dispose()
 
 
 if __name__ == "__main__":

@@ -86,26 +86,15 @@ def main() -> None:
     ap.add_argument("--edits", type=int, default=100, help="edits per run")
     ap.add_argument("--runs", type=int, default=3)
     args = ap.parse_args()
-    from sqlalchemy import select
 
     from app.api.view_schemas import SystemView
-    from app.core.config import Settings
-    from app.db.models import Frame
-    from app.db.session import make_engine, make_session_factory
     from app.services.curation import editing, system_page
-    from benchmarks.load import fresh_database
+    from benchmarks.load import demo_ball_edit
 
     acc: dict[str, float] = {}
     wrap_parts(acc)
     acc["answer (SystemView.of and its JSON)"] = acc["in all"] = 0.0
-    with fresh_database(None) as url:
-        settings = Settings(database_url=url)
-        engine = make_engine(url)
-        factory = make_session_factory(engine)
-        with factory() as s:
-            frame = next(f for f in s.scalars(select(Frame).order_by(Frame.id))
-                         if f.ball_label is not None and f.ball_label.box is not None and len(f.system.frames) == 4)
-            fid, sid, box = frame.id, frame.system_id, list(frame.ball_label.box)
+    with demo_ball_edit() as (settings, factory, fid, sid, box):
         step = [0]
 
         def edit() -> None:
@@ -130,7 +119,6 @@ def main() -> None:
             for _ in range(args.edits):
                 edit()
             runs.append({k: v * 1000 / args.edits for k, v in acc.items()})
-        engine.dispose()
     print(f"{'part (CPU ms an edit)':45s} " + " ".join(f"run {i + 1:<2d}" for i in range(args.runs)) + "  median")
     for k in acc:
         values = [r[k] for r in runs]

@@ -61,7 +61,7 @@ from collections import Counter, defaultdict
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Optional
+from typing import Any, Iterator, NamedTuple, Optional
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -130,6 +130,41 @@ class LoadReport:
 
 
 # ----- database and server -----------------------------------------------------------------------
+
+class DemoBallEdit(NamedTuple):
+    """What :func:`demo_ball_edit` yields: the settings and a session factory of a fresh demo database, and the ball
+    edit the edit benchmarks repeat (a labelled view of a 4-view system: its frame id, system id and box, px)."""
+
+    settings: Any
+    factory: Any
+    frame_id: int
+    system_id: int
+    box: list[float]
+
+
+@contextmanager
+def demo_ball_edit() -> Iterator[DemoBallEdit]:
+    """A fresh SQLite demo database (:func:`fresh_database`) and the first labelled view of a 4-view system in it: the
+    one set-up of the benchmarks that time a ball edit in process (``edit_parts.py``, ``edit_against.py``,
+    ``edit_mechanisms.py``), so that their figures are of the same edit."""
+    from sqlalchemy import select
+
+    from app.core.config import Settings
+    from app.db.models import Frame
+    from app.db.session import make_engine, make_session_factory
+
+    with fresh_database(None) as url:
+        engine = make_engine(url)
+        factory = make_session_factory(engine)
+        with factory() as s:
+            frame = next(f for f in s.scalars(select(Frame).order_by(Frame.id))
+                         if f.ball_label is not None and f.ball_label.box is not None and len(f.system.frames) == 4)
+            fid, sid, box = frame.id, frame.system_id, list(frame.ball_label.box)
+        try:
+            yield DemoBallEdit(Settings(database_url=url), factory, fid, sid, box)
+        finally:
+            engine.dispose()
+
 
 @contextmanager
 def fresh_database(database_url: Optional[str], keep: bool = False, template: Optional[Path] = None) -> Iterator[str]:
