@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -114,6 +116,22 @@ def wait_for_job(page, url: str, timeout_s: float = 300.0) -> dict:
         return job if job["state"] in ("done", "failed") else None
 
     return wait_until(ended, timeout_s=timeout_s, every_s=0.2)
+
+
+def hold_first(page, url: re.Pattern[str], asks: Callable[[str], bool]) -> list:
+    """Route the page's requests to ``url`` and hold the first whose URL ``asks`` says yes to (every other request goes
+    on): the list it answers gets that route once the request is sent, for the test to ``continue_()`` when it
+    chooses. How the race tests make an earlier answer come back after a later one."""
+    held: list = []
+
+    def hold(route) -> None:
+        if asks(route.request.url) and not held:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.route(url, hold)
+    return held
 
 
 def pump_until(page, condition, what: str, timeout_s: float = 30.0) -> None:

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from tests.browser.support import api_json as _api
-from tests.browser.support import api_write, pump_until, settled, tid, words_js_literal
+from tests.browser.support import api_write, hold_first, pump_until, settled, tid, words_js_literal
 
 pytestmark = pytest.mark.browser
 
@@ -85,15 +85,7 @@ def test_an_earlier_queue_answer_coming_back_last_leaves_the_rows_of_the_latest_
     page.goto("/")
     page.locator(tid("queue-row")).first.wait_for()
     settled(page)
-    held: list = []
-
-    def hold_the_vouched_list(route) -> None:
-        if "ball_evidence=vouched" in route.request.url and not held:
-            held.append(route)
-        else:
-            route.continue_()
-
-    page.route(re.compile(r"/api/systems\?"), hold_the_vouched_list)
+    held = hold_first(page, re.compile(r"/api/systems\?"), lambda url: "ball_evidence=vouched" in url)
     page.select_option(tid("filter-ball-evidence"), "vouched")
     pump_until(page, lambda: held, "the vouched list's request to be held")
     page.select_option(tid("filter-ball-evidence"), "")

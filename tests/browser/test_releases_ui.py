@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from tests.browser.support import api_json, api_write, pump_until, settled
+from tests.browser.support import api_json, api_write, hold_first, pump_until, settled
 
 pytestmark = pytest.mark.browser
 
@@ -55,15 +55,7 @@ def test_an_earlier_diff_coming_back_last_leaves_the_diff_the_selects_say(page):
     page.goto("/static/releases.html")
     page.wait_for_selector("[data-testid=releases] tr[data-release=race-b]")
     settled(page)
-    held: list = []
-
-    def hold_the_first(route) -> None:
-        if route.request.url.endswith("/race-a/diff/race-b") and not held:
-            held.append(route)
-        else:
-            route.continue_()
-
-    page.route(re.compile(r"/api/releases/.+/diff/"), hold_the_first)
+    held = hold_first(page, re.compile(r"/api/releases/.+/diff/"), lambda url: url.endswith("/race-a/diff/race-b"))
     page.select_option("[data-testid=diff-from]", "race-a")
     page.select_option("[data-testid=diff-to]", "race-b")
     page.click("[data-testid=diff-show]")

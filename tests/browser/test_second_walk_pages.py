@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.browser.support import api_json, api_write, log_in, pump_until, settled, tid, wait_for_job
+from tests.browser.support import api_json, api_write, hold_first, log_in, pump_until, settled, tid, wait_for_job
 from tests.conftest import migrate_new_database
 
 pytestmark = pytest.mark.browser
@@ -323,15 +323,7 @@ def test_an_earlier_answer_of_the_figures_coming_back_last_leaves_the_figures_of
     page.goto("/static/stats.html")
     page.locator(f"{tid('annotator-row')}[data-name='test-admin']").wait_for()
     settled(page)
-    held: list = []
-
-    def hold_the_future(route) -> None:
-        if "since=2999" in route.request.url and not held:
-            held.append(route)
-        else:
-            route.continue_()
-
-    page.route(re.compile(r"/api/stats/annotators"), hold_the_future)
+    held = hold_first(page, re.compile(r"/api/stats/annotators"), lambda url: "since=2999" in url)
     page.fill(tid("annotators-since"), "2999-01-01")
     pump_until(page, lambda: held, "the far window's request to be held")
     page.fill(tid("annotators-since"), "")
@@ -350,15 +342,7 @@ def test_an_earlier_audit_page_coming_back_last_leaves_the_entries_of_the_filter
     page.goto("/static/audit.html?user=test-admin")
     page.locator(tid("audit-count")).filter(has_text="match the filters").wait_for()
     settled(page)
-    held: list = []
-
-    def hold_the_filtered(route) -> None:
-        if "user=nobody-here" in route.request.url and not held:
-            held.append(route)
-        else:
-            route.continue_()
-
-    page.route(re.compile(r"/api/audit\?"), hold_the_filtered)
+    held = hold_first(page, re.compile(r"/api/audit\?"), lambda url: "user=nobody-here" in url)
     page.fill(tid("audit-user"), "nobody-here")
     page.press(tid("audit-user"), "Enter")
     pump_until(page, lambda: held, "the filtered page's request to be held")
