@@ -269,18 +269,29 @@ def served(database_url: str, workers: int, launcher: str = "v3d", log: Optional
 
 
 def user_tokens(database_url: str, clients: int) -> list[str]:
-    """One annotator per client (``v3d users add load<i> --role annotator --password-stdin``); their
-    API tokens (the last line of each command's standard output)."""
-    env = {**os.environ, "V3D_DATABASE_URL": database_url}
-    tokens = []
-    for i in range(clients):
-        run = subprocess.run([*v3d_command(), "users", "add", f"load{i}", "--role", "annotator", "--password-stdin"],
-                             input=f"load-password-{i}\n", capture_output=True, text=True, env=env, cwd=ROOT,
-                             timeout=60)
-        if run.returncode != 0 or not run.stdout.strip():
-            raise BenchError(f"v3d users add load{i} failed ({run.returncode}): {run.stderr.strip()[:300]}")
-        tokens.append(run.stdout.strip().splitlines()[-1].strip())
-    return tokens
+    """One annotator per client (``load<i>``, as ``v3d users add load<i> --role annotator`` stores it, through the
+    same service function, in this process: a command per user cost a Python start, about 3 s, each); their first
+    API tokens.
+
+    Raises:
+        BenchError: a user could not be added (the name taken, the database unreachable).
+    """
+    from app.core.errors import InvalidInputError
+    from app.db.session import make_engine, make_session_factory
+    from app.services.accounts.users import create_user
+
+    engine = make_engine(database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            tokens = []
+            for i in range(clients):
+                try:
+                    tokens.append(create_user(session, f"load{i}", "annotator", f"load-password-{i}")[1])
+                except InvalidInputError as exc:
+                    raise BenchError(f"adding the user load{i} failed: {exc}") from exc
+            return tokens
+    finally:
+        engine.dispose()
 
 
 # ----- the load ----------------------------------------------------------------------------------
