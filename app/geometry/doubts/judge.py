@@ -14,6 +14,7 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
+from app.geometry.doubts.lone_pair import lone_pair_doubts
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import (
@@ -405,7 +406,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
        or exclude it; exclude only when that ball does not project inside it); labelled views with no
        consensus or an ambiguous one give one ``views_disagree`` for the system, also when the only pairs
        are too poorly conditioned to triangulate but their labels miss each other's ray across the play
-       volume by more than tau (:func:`epipolar_pair_error`);
+       volume by more than tau (:func:`epipolar_pair_error`), and when a ball rests on one pair of sure viewpoints
+       meeting only at tau's edge (code ``lone_pair``, :func:`~app.geometry.doubts.lone_pair.lone_pair_doubts`);
     4. each unlabelled view in which the consensus ball projects inside the image (by
        ``inside_margin_px``) gets ``ball_missing`` with the exact sphere box there; with a single
        labelled view, only when the ball is more likely inside than not (:func:`_missing_from_one_view`:
@@ -449,10 +451,9 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
         placed_off = _players_placed_off(views, cons, vote, s, {v.view_id for v in off}) if accusing else {}
         doubts += _off_consensus_doubts([*off, *(by_id[vid] for vid in placed_off)], cons, cons.point, sigma, tau, s,
                                         {**cons.errors_1920, **placed_off})
-        for v in unlabelled:
-            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
-            if d is not None:
-                doubts.append(d)
+        missing = (_missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)}) for v in unlabelled)
+        doubts += [d for d in missing if d is not None]
+        doubts += lone_pair_doubts(cons, vote.obs, [v.view_id for v in labelled], weight, sigma, s, geometry)
     elif len(labelled) >= 2:
         doubts += _disagreement(vote, cons, s, geometry)
     elif len(labelled) == 1 and not lone_contradicted:
