@@ -18,6 +18,11 @@ calibrations' sigmas, :func:`app.geometry.weighting.pixel_sigma`, in quadrature)
 (baseline or parallax below the consensus's minimum: a near duplicate) are one viewpoint: their agreement checks
 nothing. The doubt names no view (either may be the one of another instant); a third view of the ball, or a check of
 the replays' timing, decides; no fix is offered.
+
+Chosen on dev-large and seeds 201-202 (``benchmarks/DOUBTS.md``, 2026-11-30): the four desynchronised replays met at
+14.8-21.1 px with joint sigmas of 3.2-11.7 px (1.45-4.7 sigmas); the five clean pairs beyond the edge had a camera
+with a half vote (three) or a joint sigma of 22-24 px (two: 0.64 and 0.81 of it). On seeds 203-205, read after, the
+clean two-viewpoint pairs of two full votes all met within 12.3 px.
 """
 from __future__ import annotations
 
