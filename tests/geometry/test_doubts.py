@@ -440,3 +440,20 @@ def test_an_edge_pair_the_cameras_uncertainty_explains_or_a_third_view_checks_is
     twin = view("twin", [0.5, 60.0, -15.0], 2500.0)
     (d,) = [d for d in judge_system(_pair(moved, twin=twin), SETTINGS) if d.kind == "views_disagree"]
     assert d.code == "lone_pair" and sorted(d.evidence["views"]) == ["goal", "main", "twin"]
+
+
+def test_one_labelled_view_whose_box_agrees_with_the_grass_calls_the_view_showing_that_spot_missing():
+    """The main view's box is 15 % larger than the ball's (a box drawn loosely): its size puts the ball a little
+    nearer than the grass, still within the tolerance, so the ball is placed on the grass. A zoomed replay that shows
+    the grass spot but not the nearer part of the ray is called missing (the inside chance of the box-size depth law
+    alone is 0.41), without a box (the segment leaves the image); aimed 8 m away, the spot is outside: nothing."""
+    main_cam = look_at(CAMERAS["main"][0], BALL, 2500.0)
+    box = sphere_image_box(main_cam, BALL, R_BALL)
+    c, half = (box[:2] + box[2:]) / 2, (box[2:] - box[:2]) / 2 * 1.15
+    main = view("main", *CAMERAS["main"], box=np.concatenate([c - half, c + half]), role="action")
+    zoomed = view("goal", CAMERAS["goal"][0], 9000.0, box=None)
+    (d,) = accusing(judge_system([main, zoomed], SETTINGS))
+    assert (d.kind, d.view_id, d.code, d.suggestion) == ("ball_missing", "goal", "epipolar", None)
+    assert d.evidence["placed"] == "grass" and d.evidence["inside_chance"] < 0.5
+    away = view("goal", CAMERAS["goal"][0], 9000.0, box=None, target=BALL + [0.0, 8.0, 0.0])
+    assert accusing(judge_system([main, away], SETTINGS)) == []

@@ -238,11 +238,12 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     unknown height. ``v`` is said to miss it when the ball is more likely inside ``v``'s image than not: it
     projects inside (by ``inside_margin_px``) where :func:`_single_view_ball` places it (on the grass when
     the box size agrees, else at the box's depth), and the chance that it lies inside, the box-size depth
-    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half. A ball
-    in the air that only the grass guess puts inside is not claimed (an out-of-frame replay would be called
-    missing). The segment is drawn (``evidence["epipolar_px"]``); a box is suggested only where the
-    segment is short enough that any point on it lies within ``consensus_tau_px`` of its middle (code
-    ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
+    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half, or the box
+    size agrees with the ball on the grass (placed ``grass``: most balls are on the ground, and the box does not say
+    otherwise). A ball the box places in the air that only the grass guess puts inside is not claimed (an
+    out-of-frame replay would be called missing). The segment is drawn (``evidence["epipolar_px"]``); a box is
+    suggested only where the segment is short enough that any point on it lies within ``consensus_tau_px`` of its
+    middle (code ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
     construction, so it is a guess, not evidence (the service keeps its provenance)."""
     ball, how = _single_view_ball(only, s)
     if ball is None or not _plausible(ball, s):
@@ -267,7 +268,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     else:
         w = np.ones(len(pts))
     chance = float(np.sum(w * inside) / np.sum(w))
-    if chance < 0.5:
+    if chance < 0.5 and how != "grass":  # a box that agrees with the grass puts the ball where most balls are
         return None
     seen = uv[inside]
     length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * rule_scale(v, s)
