@@ -402,3 +402,58 @@ def test_each_views_consensus_without_it_is_the_judges_with_that_view_excluded()
                 assert (sorted(got.inliers), got.ambiguous) == (sorted(want.inliers), want.ambiguous)
                 compared += want.point is not None
     assert compared >= 20  # most leave-one-out consensuses place a ball
+
+
+def _pair(goal: dict, **extra) -> list[DoubtView]:
+    """The main and goal views of :func:`scene` (both full votes, exact cameras), ``goal`` its overrides, and
+    ``extra`` views added."""
+    return [v for v in scene(goal=goal) if v.view_id in ("main", "goal")] + list(extra.values())
+
+
+def test_a_ball_two_views_agree_on_only_at_the_edge_of_tau_is_doubted_without_naming_either():
+    """The goal replay shows the ball 2 m along y from where the main camera does (another instant): the two rays
+    still meet within the consensus tolerance (25 px), but only at its edge (17.6 px, above 0.7 of the
+    triangulation's 20 px), and both cameras are sure (no stated uncertainty): views_disagree, code lone_pair, no
+    view named, no fix. 1 m along y meets at 8.6 px: a right pair's, no doubt."""
+    (d,) = accusing(judge_system(_pair({"ball": BALL + [0.0, 2.0, 0.0]}), SETTINGS))
+    assert (d.kind, d.code, d.view_id, d.suggestion) == ("views_disagree", "lone_pair", None, None)
+    assert sorted(d.evidence["views"]) == ["goal", "main"]
+    assert 14.0 < d.evidence["best_pair_error_px_1920"] < 25.0 and d.evidence["edge_px"] == 14.0
+    assert d.evidence["joint_sigma_px_1920"] == 0.0
+    assert "third view" in doubt_message(d, {}) and doubt_message(d, {}).endswith(".")
+    assert accusing(judge_system(_pair({"ball": BALL + [0.0, 1.0, 0.0]}), SETTINGS)) == []
+
+
+def test_an_edge_pair_the_cameras_uncertainty_explains_or_a_third_view_checks_is_not_doubted():
+    """The same 2 m pair is not doubted when a camera's stated sigma exceeds the error (a camera that unsure puts a
+    right label that far off), when one of the two views is a few-lined helper (no full vote: its sigma is not its
+    camera's word), or when a third viewpoint agrees with the ball (it checks the pair). A near duplicate of a view
+    (0.5 m away, same ball) is no third viewpoint: the doubt stays."""
+    moved = {"ball": BALL + [0.0, 2.0, 0.0]}
+    unsure = {"pan_deg": 0.3, "tilt_deg": 0.3, "roll_deg": 0.05, "focal_px": 5.0}
+    assert accusing(judge_system(_pair({**moved, "uncertainty": unsure}), SETTINGS)) == []
+    helper = _pair({**moved, "line_classes": 2, "uncertainty": {"pan_deg": 0.001, "tilt_deg": 0.001,
+                                                               "roll_deg": 0.001, "focal_px": 0.1}})
+    assert all(d.code != "lone_pair" for d in judge_system(helper, SETTINGS))
+    third = _pair(moved, corner=view("corner", *CAMERAS["corner"]))
+    assert all(d.code != "lone_pair" for d in judge_system(third, SETTINGS))
+    twin = view("twin", [0.5, 60.0, -15.0], 2500.0)
+    (d,) = [d for d in judge_system(_pair(moved, twin=twin), SETTINGS) if d.kind == "views_disagree"]
+    assert d.code == "lone_pair" and sorted(d.evidence["views"]) == ["goal", "main", "twin"]
+
+
+def test_one_labelled_view_whose_box_agrees_with_the_grass_calls_the_view_showing_that_spot_missing():
+    """The main view's box is 15 % larger than the ball's (a box drawn loosely): its size puts the ball a little
+    nearer than the grass, still within the tolerance, so the ball is placed on the grass. A zoomed replay that shows
+    the grass spot but not the nearer part of the ray is called missing (the inside chance of the box-size depth law
+    alone is 0.41), without a box (the segment leaves the image); aimed 8 m away, the spot is outside: nothing."""
+    main_cam = look_at(CAMERAS["main"][0], BALL, 2500.0)
+    box = sphere_image_box(main_cam, BALL, R_BALL)
+    c, half = (box[:2] + box[2:]) / 2, (box[2:] - box[:2]) / 2 * 1.15
+    main = view("main", *CAMERAS["main"], box=np.concatenate([c - half, c + half]), role="action")
+    zoomed = view("goal", CAMERAS["goal"][0], 9000.0, box=None)
+    (d,) = accusing(judge_system([main, zoomed], SETTINGS))
+    assert (d.kind, d.view_id, d.code, d.suggestion) == ("ball_missing", "goal", "epipolar", None)
+    assert d.evidence["placed"] == "grass" and d.evidence["inside_chance"] < 0.5
+    away = view("goal", CAMERAS["goal"][0], 9000.0, box=None, target=BALL + [0.0, 8.0, 0.0])
+    assert accusing(judge_system([main, away], SETTINGS)) == []

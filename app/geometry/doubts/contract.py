@@ -68,7 +68,7 @@ CODES: dict[str, tuple[str, ...]] = {
     "mirrored_labels": ("flagged", "suspected"),
     "ball_off_consensus": ("off_consensus", "behind_camera", "trajectory"),
     "ball_missing": ("consensus", "epipolar", "epipolar_box", "pairing"),
-    "views_disagree": ("no_agreement", "ambiguous", "epipolar"),
+    "views_disagree": ("no_agreement", "ambiguous", "epipolar", "lone_pair"),
     "near_duplicate_view": ("near_duplicate",),
     # a detector's prediction checked against the other views (app.geometry.doubts.detections)
     # (consensus: the labelled views agree; one_view: one labelled view and two detected views; one_ray: one

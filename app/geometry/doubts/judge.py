@@ -14,6 +14,7 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.consensus import Consensus, ball_consensus
 from app.geometry.doubts.contract import Doubt, DoubtSettings, DoubtView, _box_list, _inside, _plausible, _r
 from app.geometry.doubts.epipolar import _mono, _sees, _segment, _single_view_ball, epipolar_pair_error
+from app.geometry.doubts.lone_pair import lone_pair_doubts
 from app.geometry.mirror import mirror_camera
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
 from app.geometry.triangulation import (
@@ -237,11 +238,12 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     unknown height. ``v`` is said to miss it when the ball is more likely inside ``v``'s image than not: it
     projects inside (by ``inside_margin_px``) where :func:`_single_view_ball` places it (on the grass when
     the box size agrees, else at the box's depth), and the chance that it lies inside, the box-size depth
-    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half. A ball
-    in the air that only the grass guess puts inside is not claimed (an out-of-frame replay would be called
-    missing). The segment is drawn (``evidence["epipolar_px"]``); a box is suggested only where the
-    segment is short enough that any point on it lies within ``consensus_tau_px`` of its middle (code
-    ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
+    taken as a normal law (sigma ``ground_box_tolerance`` / 2) over the segment, is at least a half, or the box
+    size agrees with the ball on the grass (placed ``grass``: most balls are on the ground, and the box does not say
+    otherwise). A ball the box places in the air that only the grass guess puts inside is not claimed (an
+    out-of-frame replay would be called missing). The segment is drawn (``evidence["epipolar_px"]``); a box is
+    suggested only where the segment is short enough that any point on it lies within ``consensus_tau_px`` of its
+    middle (code ``epipolar_box``; ``epipolar`` without a box). A suggested box lies on the other view's ray by
     construction, so it is a guess, not evidence (the service keeps its provenance)."""
     ball, how = _single_view_ball(only, s)
     if ball is None or not _plausible(ball, s):
@@ -266,7 +268,7 @@ def _missing_from_one_view(only: DoubtView, v: DoubtView, s: DoubtSettings) -> D
     else:
         w = np.ones(len(pts))
     chance = float(np.sum(w * inside) / np.sum(w))
-    if chance < 0.5:
+    if chance < 0.5 and how != "grass":  # a box that agrees with the grass puts the ball where most balls are
         return None
     seen = uv[inside]
     length = float(np.sum(np.linalg.norm(np.diff(seen, axis=0), axis=1))) * rule_scale(v, s)
@@ -405,7 +407,8 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
        or exclude it; exclude only when that ball does not project inside it); labelled views with no
        consensus or an ambiguous one give one ``views_disagree`` for the system, also when the only pairs
        are too poorly conditioned to triangulate but their labels miss each other's ray across the play
-       volume by more than tau (:func:`epipolar_pair_error`);
+       volume by more than tau (:func:`epipolar_pair_error`), and when a ball rests on one pair of sure viewpoints
+       meeting only at tau's edge (code ``lone_pair``, :func:`~app.geometry.doubts.lone_pair.lone_pair_doubts`);
     4. each unlabelled view in which the consensus ball projects inside the image (by
        ``inside_margin_px``) gets ``ball_missing`` with the exact sphere box there; with a single
        labelled view, only when the ball is more likely inside than not (:func:`_missing_from_one_view`:
@@ -449,10 +452,9 @@ def judge_system(views: Sequence[DoubtView], settings: DoubtSettings,
         placed_off = _players_placed_off(views, cons, vote, s, {v.view_id for v in off}) if accusing else {}
         doubts += _off_consensus_doubts([*off, *(by_id[vid] for vid in placed_off)], cons, cons.point, sigma, tau, s,
                                         {**cons.errors_1920, **placed_off})
-        for v in unlabelled:
-            d = _missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)})
-            if d is not None:
-                doubts.append(d)
+        missing = (_missing_doubt(v, cons, s, "consensus", {"agreeing_views": list(cons.inliers)}) for v in unlabelled)
+        doubts += [d for d in missing if d is not None]
+        doubts += lone_pair_doubts(cons, vote.obs, [v.view_id for v in labelled], weight, sigma, s, geometry)
     elif len(labelled) >= 2:
         doubts += _disagreement(vote, cons, s, geometry)
     elif len(labelled) == 1 and not lone_contradicted:

@@ -274,6 +274,15 @@ def _disagree_epipolar(ev, v, n):
             f"view's ray across the play volume (tolerance {_num(ev.get('tau_px'))} px); {decide}.")
 
 
+def _disagree_lone_pair(ev, v, n):
+    names = _list(ev.get("views"), n)
+    return (f"The ball labels of {names} agree only at the edge of tolerance: their rays miss by "
+            f"{_num(ev.get('best_pair_error_px_1920'))} px at 1920 width, more than a right pair's "
+            f"{_num(ev.get('edge_px'))} px (of {_num(ev.get('tau_px'))}) and more than their cameras' "
+            f"{_num(ev.get('joint_sigma_px_1920'))} px of uncertainty; two views of different instants cross so. "
+            "A third view of the ball or a check of the replays' timing would tell which label is wrong.")
+
+
 def _near_dup(ev, v, n):
     return (f"{v} sees the ball from nearly the same place as {n.get(ev.get('other_view'), ev.get('other_view'))} "
             f"(their cameras are {ev.get('angle_deg', 0):.2f} deg apart seen from the ball, "
@@ -300,6 +309,7 @@ _WRITERS: dict[tuple[str, str], Callable[[dict, str, Names], str]] = {
     ("views_disagree", "no_agreement"): _disagree,
     ("views_disagree", "ambiguous"): _disagree,
     ("views_disagree", "epipolar"): _disagree_epipolar,
+    ("views_disagree", "lone_pair"): _disagree_lone_pair,
     ("near_duplicate_view", "near_duplicate"): _near_dup,
     **{("ball_detected", code): (lambda c: lambda ev, v, n: _detected(ev, v, n, c))(code) for code in _DETECTED_RULE},
     ("detection_off_label", "agrees_with_others"): _detection_off,
