@@ -90,7 +90,7 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 11 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
+DERIVED_VERSION = 12 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
 # weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
@@ -101,7 +101,8 @@ DERIVED_VERSION = 11 + RULE_VERSION  # 2: pairs outside the play volume dropped,
 # it would make a ball with is no weak fill), and a box placed from labels the ball keeps no ball from gets no fix key;
 # 9: nor a box placed from one labelled ray whose ball is in the air where no third view sees it; 10: nor boxes
 # placed from one labelled ray and two detected views whose pairs the ball's rule would not all keep once confirmed;
-# 11: a ball resting on one pair whose rays meet only at the edge of tau is refused
+# 11: a ball resting on one pair whose rays meet only at the edge of tau is refused; 12: before the pairs are weighed,
+# those with a view outside the largest consensus of views (within tau of one pair's point) are left out
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
