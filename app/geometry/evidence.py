@@ -19,7 +19,8 @@ Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation o
    error there is within tau (the paper's own test of agreement, in the pair rule's units) or within
    :data:`CONSENSUS_SIGMAS` of their own pixel sigma (a camera known only to 80 px cannot refute a point 60 px off
    its label: it supports every hypothesis and decides none); the largest support wins, two of one size ordered by
-   the smaller sum of their views' errors over tau. Each pair with a view outside it is left out (reason ``outside_consensus``); nothing is when every view is in it.
+   the smaller sum of their views' errors over tau. Each pair with a view outside it is left out (reason
+   ``outside_consensus``); nothing is when every view is in it.
    Why before the weighing and by count: a replay of another instant whose ray crosses the others' within tau by
    chance makes sharp pairs, and rule 2 weighs them above the right pairs of a few-lined or unsure camera, so the
    gate dropped the right side; a count of agreeing views does not depend on their sigmas. Why the smaller error
