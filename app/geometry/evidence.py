@@ -13,6 +13,19 @@ Geometry*, 2nd ed., sec. 5.2.3 and 12.2; the confidence-weighted triangulation o
    two views an error of one camera along the epipolar line (a mirrored or misplaced camera) leaves the ball's rays no
    residual, and the players are a second, independent look at the same two cameras (in a desynchronised replay
    they have moved too);
+0b. before anything is weighed, the largest set of views that agree on one ball is chosen (RANSAC's consensus:
+   Fischler and Bolles, *Random Sample Consensus*, CACM 24(6), 1981; Hartley and Zisserman sec. 4.7.1, every pair
+   a sample): each kept pair's point is a hypothesis, its support the views of the kept pairs whose reprojection
+   error there is within tau (the paper's own test of agreement, in the pair rule's units) or within
+   :data:`CONSENSUS_SIGMAS` of their own pixel sigma (a camera known only to 80 px cannot refute a point 60 px off
+   its label: it supports every hypothesis and decides none); the largest support wins, two of one size ordered by
+   the smaller sum of their views' errors over tau. Each pair with a view outside it is left out (reason
+   ``outside_consensus``); nothing is when every view is in it.
+   Why before the weighing and by count: a replay of another instant whose ray crosses the others' within tau by
+   chance makes sharp pairs, and rule 2 weighs them above the right pairs of a few-lined or unsure camera, so the
+   gate dropped the right side; a count of agreeing views does not depend on their sigmas. Why the smaller error
+   between supports of one size (with three views, two pairs sharing a view): right pairs meet well within tau,
+   chance crossings anywhere in it (rule 4);
 1. each view has a pixel sigma (px at 1920 width: its label's and its calibration's, in quadrature); each kept pair's
    point ``p_k`` has the information matrix ``I_k = sum_v J_v^T J_v / sigma_v^2`` of its two views
    (:func:`app.geometry.spread.projection_jacobian` at ``p_k``). A low-parallax pair's information is nearly
@@ -44,6 +57,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from app.geometry.pair_error import scaled_error_px
 from app.geometry.spread import position_sigma_m, projection_jacobian
 from app.geometry.triangulation import (
     STATUS_NO_PAIR_KEPT,
@@ -69,6 +83,11 @@ VOLUME_SIGMAS = 3.0
 #: it withheld no wrong ball and two right ones whose pairs meet at 0.71 and 0.74 tau: the margin is thin.
 LONE_PAIR_MAX_ERROR_TAU = 0.7
 
+#: A view supports a hypothesised ball within this many of its own pixel sigmas, when that is more than tau (rule 0b
+#: of the module docstring): the 99 % radius of a two-dimensional normal pixel error (the square root of the
+#: chi-square quantile of 2 degrees of freedom, 9.21), the level of :data:`GATE_CHI2`.
+CONSENSUS_SIGMAS = 3.035
+
 # Relative eigenvalue level below which an information matrix fixes no point (a direction it knows nothing of).
 _SINGULAR_EPS = 1e-12
 
@@ -78,9 +97,9 @@ class EvidenceBall:
     """What :func:`judge_by_evidence` gives.
 
     Attributes:
-        result: the triangulation with the pairs judged (reasons ``players_disagree``, ``beyond_joint_sigma``,
-            ``sigma_above_bound``, ``outside_play_volume`` and ``lone_pair_at_tau_edge`` added where they apply) and
-            the fused ball, or status ``no_pair_kept``.
+        result: the triangulation with the pairs judged (reasons ``players_disagree``, ``outside_consensus``,
+            ``beyond_joint_sigma``, ``sigma_above_bound``, ``outside_play_volume`` and ``lone_pair_at_tau_edge`` added
+            where they apply) and the fused ball, or status ``no_pair_kept``.
         sigma_m: the ball's sigma (metres, one standard deviation along its least certain direction) of the pairs
             left, also when the bound refused the ball (what refused it); None without pairs left or when their
             views fix no point.
@@ -159,11 +178,64 @@ def _kept_informations(pairs: list[PairResult], by_id: Mapping[Any, BallObservat
     return infos
 
 
+def _support(point: np.ndarray, views: Sequence[BallObservation], tau_px: float, rule: str,
+             sigma_px_1920: Mapping[Any, float]) -> tuple[frozenset, float]:
+    """The views of ``views`` that agree with a hypothesised ball ``point`` ((3,) world metres, SoccerNet frame):
+    their reprojection error there, in ``rule``'s units (px at 1920 width for the scaled rules,
+    :func:`app.geometry.pair_error.scaled_error_px`), within ``tau_px`` or within :data:`CONSENSUS_SIGMAS` of their
+    pixel sigma ``sigma_px_1920`` (view id -> px at 1920 width); a view the point lies behind agrees with nothing.
+    Returns them and the sum of their errors over tau (no unit)."""
+    support, total = [], 0.0
+    for o in views:
+        e = scaled_error_px(reprojection_error_px(o.camera, point, o.point_px), o.image_width, rule)
+        if e is not None and e <= max(tau_px, CONSENSUS_SIGMAS * float(sigma_px_1920[o.view_id])):
+            support.append(o.view_id)
+            total += e / tau_px
+    return frozenset(support), total
+
+
+def largest_consensus(pairs: Sequence[PairResult], kept: Sequence[int], by_id: Mapping[Any, BallObservation],
+                      tau_px: float, rule: str, sigma_px_1920: Mapping[Any, float]) -> frozenset | None:
+    """The largest set of views that agree on one ball (rule 0b of the module docstring; RANSAC, Fischler and Bolles
+    1981, with every pair as a sample): each pair ``pairs[k]`` of ``kept`` (indices; each with a point, world metres)
+    a hypothesis, its support the views of the kept pairs (``by_id``: view id -> observation) within ``tau_px`` of
+    it (``rule``'s units, px at 1920 width for the scaled rules) or within :data:`CONSENSUS_SIGMAS` of their pixel
+    sigma (``sigma_px_1920``, px at 1920 width); the largest, two of one size ordered by the smaller sum of errors
+    over tau, then by the pairs' order.
+
+    Returns:
+        Its view ids, or None when ``kept`` is empty or it holds every view of the kept pairs (nothing to leave
+        out).
+
+    Raises:
+        KeyError: a view of a kept pair without an observation in ``by_id`` or a sigma.
+    """
+    ids = {v for k in kept for v in (pairs[k].view_a, pairs[k].view_b)}
+    views = [o for v, o in by_id.items() if v in ids]
+    best: tuple[tuple[int, float], frozenset] | None = None
+    for k in kept:
+        support, total = _support(np.asarray(pairs[k].point, float), views, tau_px, rule, sigma_px_1920)
+        key = (len(support), -total)
+        if best is None or key > best[0]:
+            best = (key, support)
+    if best is None or len(best[1]) == len(ids):
+        return None
+    return best[1]
+
+
+def _outside_consensus(pairs: Sequence[PairResult], kept: Sequence[int], by_id: Mapping[Any, BallObservation],
+                       triangulated: TriangulationResult, sigma_px_1920: Mapping[Any, float]) -> list[int]:
+    """The pairs of ``kept`` (indices into ``pairs``) with a view outside :func:`largest_consensus` of them, at
+    ``triangulated``'s tau and rule; none when the consensus leaves nothing out."""
+    agree = largest_consensus(pairs, kept, by_id, triangulated.tau_px, triangulated.rule, sigma_px_1920)
+    return [] if agree is None else [k for k in kept if not {pairs[k].view_a, pairs[k].view_b} <= agree]
+
+
 def judge_by_evidence(observations: Sequence[BallObservation], triangulated: TriangulationResult,
                       sigma_px_1920: Mapping[Any, float], *, max_sigma_m: float,
                       distance_to_volume_m: Callable[[np.ndarray], float] | None = None,
                       players_disagree: Callable[[Any, Any], bool] | None = None,
-                      lone_pair_max_error_tau: float | None = None) -> EvidenceBall:
+                      lone_pair_max_error_tau: float | None = None, consensus: bool = False) -> EvidenceBall:
     """Judge the pairs the paper's rules kept (``triangulated``: :func:`app.geometry.triangulation.triangulate_ball`
     without weights, play volume or parallax filter) by their uncertainty, and fuse the ball (module docstring).
 
@@ -179,6 +251,8 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
             views see (asked once per kept pair, before anything else); None: no such evidence.
         lone_pair_max_error_tau: a ball left resting on one pair whose error (``PairResult.error``, the rule's
             units) is above this fraction of ``triangulated.tau_px`` is refused (rule 4); None: no such check.
+        consensus: whether the pairs with a view outside the largest consensus of the views are left out before
+            the weighing (rule 0b, :func:`largest_consensus`, reason ``outside_consensus``).
 
     Returns:
         An :class:`EvidenceBall`; ``triangulated`` unchanged (and sigma None) when it has no ball.
@@ -192,12 +266,16 @@ def judge_by_evidence(observations: Sequence[BallObservation], triangulated: Tri
     if triangulated.point is None:
         return EvidenceBall(triangulated, None)
     pairs = list(triangulated.pairs)
-    infos = _kept_informations(pairs, {o.view_id: o for o in observations}, sigma_px_1920, players_disagree)
+    by_id = {o.view_id: o for o in observations}
+    infos = _kept_informations(pairs, by_id, sigma_px_1920, players_disagree)
 
     def drop(ks, reason: str) -> None:
         for k in ks:
             pairs[k] = dataclasses.replace(pairs[k], kept=False, reason=reason)
             infos.pop(k, None)
+
+    if consensus and len(infos) > 1:
+        drop(_outside_consensus(pairs, list(infos), by_id, triangulated, sigma_px_1920), "outside_consensus")
 
     ball = None
     while infos:

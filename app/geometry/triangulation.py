@@ -49,7 +49,8 @@ from app.geometry.pair_error import _rule, pair_error
 #: Reasons a pair is dropped, in the order they are tested (a pair reports the first that applies).
 DROP_REASONS = ("degenerate", "point_at_infinity", "behind_camera", "baseline_below_min", "parallax_below_min",
                 "error_above_tau", "outside_play_volume", "weak_calibrations", "outweighed",
-                "players_disagree", "beyond_joint_sigma", "sigma_above_bound", "lone_pair_at_tau_edge")
+                "players_disagree", "beyond_joint_sigma", "sigma_above_bound", "lone_pair_at_tau_edge",
+                "outside_consensus")
 
 
 #: Least sum of the two views' calibration weights (``triangulate_ball`` ``view_weights``) of a pair that makes a

@@ -161,3 +161,87 @@ def test_the_lone_pair_bound_leaves_a_ball_of_several_pairs_alone():
                                lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
     assert [p.reason for p in judged.result.pairs] == ["beyond_joint_sigma", None, "error_above_tau"]
     assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.01
+
+
+def _desynchronised_beside_unsure(unsure_views: int):
+    """The action's view (a sharp camera, pixel sigma 2) and ``unsure_views`` views of the same instant whose cameras
+    are known to 25 px (a few-lined camera's floor), beside a sharp replay (sigma 2) of the ball 2 m on, whose ray
+    crosses the others' within tau by chance (the paper keeps every pair). Returns the observations, the paper's
+    triangulation and the sigmas."""
+    action = look_at([0.0, 75.0, -22.0], BALL, focal=3000.0)
+    replay = look_at([70.0, 4.0, -15.0], BALL, focal=2500.0)
+    unsure = [look_at([10.0, -55.0, -12.0], BALL, focal=4000.0), look_at([12.0, -52.0, -12.0], BALL, focal=4000.0)]
+    obs = [observe([action])[0],
+           BallObservation("v1", replay, observe([replay], BALL + [0.0, 2.0, 0.0])[0].point_px, 1920.0)]
+    obs += [BallObservation(f"v{2 + k}", cam, observe([cam])[0].point_px, 1920.0)
+            for k, cam in enumerate(unsure[:unsure_views])]
+    sigmas = {"v0": 2.0, "v1": 2.0, "v2": 25.0, "v3": 25.0}
+    return obs, _paper(obs), {o.view_id: sigmas[o.view_id] for o in obs}
+
+
+def test_a_sharp_replay_of_another_instant_does_not_outweigh_the_views_that_agree():
+    """Three views: the replay's pairs with the action's and with the unsure view meet within tau (0.75 and 0.96
+    tau), sharper than the right pair, whose unsure camera weighs little: weighed first, the right pair is dropped
+    beyond the joint sigma and the ball is the replay's, almost 2 m off. Chosen first by their consensus (no third
+    view agrees with any pair's point within tau or 3 of its sigmas, and the right pair's rays meet closest), the
+    replay's pairs are left out (``outside_consensus``) and the ball is the right one."""
+    obs, paper, sig = _desynchronised_beside_unsure(1)
+    assert all(p.kept for p in paper.pairs)  # the paper keeps the replay's pairs: within tau
+    weighed = judge_by_evidence(obs, paper, sig, max_sigma_m=10.0)
+    assert weighed.result.point is not None and np.linalg.norm(weighed.result.point - BALL) > 1.0
+    assert [p.reason for p in weighed.result.pairs] == [None, "beyond_joint_sigma", "beyond_joint_sigma"]
+    judged = judge_by_evidence(obs, paper, sig, max_sigma_m=10.0, consensus=True)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.05
+    assert {(p.view_a, p.view_b): p.reason for p in judged.result.pairs} == {
+        ("v0", "v1"): "outside_consensus", ("v0", "v2"): None, ("v1", "v2"): "outside_consensus"}
+
+
+def test_three_views_that_agree_outnumber_a_sharp_replay():
+    """Four views: the action's and two unsure ones agree on the ball, the replay's pairs cross two of them within
+    tau. Every pair of the three that agree has the other two within tau of its point; the replay's pairs have at
+    most three: weighed alone the replay's sharp pairs win and the ball is more than a metre off; with the consensus
+the replay's pairs are left out and the ball is the three views'."""
+    obs, paper, sig = _desynchronised_beside_unsure(2)
+    weighed = judge_by_evidence(obs, paper, sig, max_sigma_m=10.0)
+    assert weighed.result.point is not None and np.linalg.norm(weighed.result.point - BALL) > 1.0
+    judged = judge_by_evidence(obs, paper, sig, max_sigma_m=10.0, consensus=True)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.05
+    left_out = {(p.view_a, p.view_b) for p in judged.result.pairs if p.reason == "outside_consensus"}
+    assert left_out and all("v1" in pair for pair in left_out)
+    assert all(p.kept for p in judged.result.pairs if "v1" not in (p.view_a, p.view_b) and p.reason is None)
+
+
+def test_views_that_all_agree_are_judged_as_without_the_consensus():
+    """Four views with a pixel of label noise, one of them unsure: every pair's point has every view within tau, so
+    the consensus leaves nothing out and the ball, its sigma and every pair's reason are those of the weighing
+    alone."""
+    cams = [look_at([0.0, 75.0, -22.0], BALL, focal=3000.0), look_at([70.0, 4.0, -15.0], BALL, focal=2500.0),
+            look_at([10.0, -55.0, -12.0], BALL, focal=4000.0), look_at([-60.0, 40.0, -18.0], BALL, focal=2500.0)]
+    obs = observe(cams, noise_px=1.0)
+    sig = {"v0": 2.0, "v1": 2.0, "v2": 25.0, "v3": 2.0}
+    plain = judge_by_evidence(obs, _paper(obs), sig, max_sigma_m=10.0)
+    judged = judge_by_evidence(obs, _paper(obs), sig, max_sigma_m=10.0, consensus=True)
+    assert judged.result.point is not None and np.allclose(judged.result.point, plain.result.point)
+    assert judged.sigma_m == plain.sigma_m
+    assert [p.reason for p in judged.result.pairs] == [p.reason for p in plain.result.pairs]
+    assert all(p.kept for p in judged.result.pairs)
+
+
+def test_a_camera_known_to_nothing_supports_every_ball_and_decides_none():
+    """Three views; the third's camera is undetermined (pixel sigma 2000 px) and its label's ray crosses the action's
+    exactly, 3 m nearer the action's camera than the ball: that pair meets closest of all, yet the third view is
+    within its own sigma of every pair's point, so it supports every hypothesis; the sure pair's (a label 8 px off)
+    then holds every view, nothing is left out, and the weighing makes the ball the sure pair's. Counted by tau
+    alone, the close pair would win and leave no ball (its sigma beyond the bound)."""
+    cams = [look_at([0.0, 75.0, -22.0], BALL, focal=3000.0), look_at([70.0, 4.0, -15.0], BALL, focal=2500.0),
+            look_at([10.0, -55.0, -12.0], BALL, focal=4000.0)]
+    obs = observe(cams)
+    obs[1] = BallObservation("v1", cams[1], obs[1].point_px + [0.0, 8.0], 1920.0)
+    towards = (cams[0].C - BALL) / np.linalg.norm(cams[0].C - BALL)
+    obs[2] = BallObservation("v2", cams[2], observe([cams[2]], BALL + 3.0 * towards)[0].point_px, 1920.0)
+    paper = _paper(obs)
+    assert [p.kept for p in paper.pairs] == [True, True, False]  # v1 + v2 above tau
+    sig = {"v0": 2.0, "v1": 2.0, "v2": 2000.0}
+    judged = judge_by_evidence(obs, paper, sig, max_sigma_m=10.0, consensus=True)
+    assert judged.result.point is not None and np.linalg.norm(judged.result.point - BALL) < 0.3
+    assert "outside_consensus" not in {p.reason for p in judged.result.pairs}

@@ -146,7 +146,8 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
     alone); the ball's sigma is then that of the views of the kept pairs at their pixel sigmas
     (:func:`view_sigmas_px`, :func:`app.geometry.evidence.kept_pairs_sigma_m`), shown, never a reason.
     Under "evidence" (a kind that weighs calibrations) the pairs kept by tau and the baseline alone are judged by
-    their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: information-weighted, pairs beyond their joint
+    their uncertainty (:func:`app.geometry.evidence.judge_by_evidence`: the pairs with a view outside the largest
+    consensus of views left out, then information-weighted, pairs beyond their joint
     sigma left out, the bound ``settings.ball_max_sigma_m``, the play volume within the ball's uncertainty, a ball
     resting on one pair whose rays meet only at the edge of tau, ``LONE_PAIR_MAX_ERROR_TAU``).
     ``boxes``: frame id -> a ball box (px) standing for that view's stored label (a label not yet confirmed);
@@ -161,7 +162,7 @@ def system_ball(system: System, observations: Sequence[BallObservation], setting
         disagree = players_disagree(system, {o.view_id: o.camera for o in observations}, players)
         judged = judge_by_evidence(observations, paper, sigmas, max_sigma_m=settings.ball_max_sigma_m,
                                    distance_to_volume_m=distance_to_play_volume, players_disagree=disagree,
-                                   lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU)
+                                   lone_pair_max_error_tau=LONE_PAIR_MAX_ERROR_TAU, consensus=True)
         return judged.result, judged.sigma_m
     weights = calibration_weights(system, settings, weighed=weighed) if weighs_calibrations else None
     result = triangulate_ball(observations, tau_px=settings.triangulation_tau_px, rule=settings.pair_error_rule,

@@ -258,9 +258,9 @@ def without_unbacked_fixes(system: System, doubts: list[Any], once_confirmed: Co
 
 
 #: The reasons for which the ball's rule leaves out a pair whose rays it could triangulate because the two views
-#: disagree (``app.geometry.triangulation.DROP_REASONS``): the paper's tau, the players both cameras see, the pairs'
-#: joint sigma (``app.geometry.evidence``).
-DISAGREEING = ("error_above_tau", "players_disagree", "beyond_joint_sigma")
+#: disagree (``app.geometry.triangulation.DROP_REASONS``): the paper's tau, the players both cameras see, the largest
+#: consensus of the views and the pairs' joint sigma (``app.geometry.evidence``).
+DISAGREEING = ("error_above_tau", "players_disagree", "outside_consensus", "beyond_joint_sigma")
 
 
 def _pairings_the_ball_refuses(doubts: Sequence[Any], labelled: set[int], once_confirmed: ConfirmedBall | None

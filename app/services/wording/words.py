@@ -185,6 +185,10 @@ WORDS: dict[str, dict[str, dict[str, str]]] = {
                                            "limit τ: right pairs meet well within it, rays that cross by chance (a "
                                            "replay of another instant, a label on another object) anywhere in it, "
                                            "and no other view checks which this is; place or confirm a third view"},
+        "outside_consensus": {"chip": "outside the consensus",
+                              "means": "a view of this pair is not among the most views that agree on one ball "
+                                       "(each within τ of it): a replay of another instant, or a view whose label "
+                                       "or camera is off; the pair is left out before the pairs are weighed"},
     },
     "rule": {
         "max_scaled_1920": {"chip": "worse view, at 1920 px width",
