@@ -13,6 +13,7 @@ from app.geometry.ball import sphere_image_box
 from app.geometry.doubts.contract import DoubtSettings, DoubtView, _plausible
 from app.geometry.doubts.epipolar import _polyline_distance, _segment
 from app.geometry.pair_error import REFERENCE_WIDTH_PX
+from app.geometry.spread import position_covariance
 from app.geometry.triangulation import (
     BallObservation,
     reprojection_error_px,
@@ -178,6 +179,39 @@ def read_sigma(sigma: Mapping[Hashable, float], view_id: Hashable) -> float:
     """A view's pixel sigma (px at 1920 width) as a ball's spread reads it: ``sigma``'s (0 where the view has none), at
     least :data:`MIN_SIGMA_PX`."""
     return max(MIN_SIGMA_PX, float(sigma.get(view_id, 0.0)))
+
+
+#: A ball whose centre lies lower than a ball resting on the grass (a radius up) by more than this many of its own
+#: standard deviations along the vertical is under the grass, where no ball is (:func:`under_grass`): one-sided,
+#: about one chance in a thousand for a ball on the grass whose boxes and cameras err as their sigmas say. Set a
+#: priori (the normal's 99.9 % point), not fitted.
+UNDER_GRASS_SIGMAS = 3.0
+
+
+def under_grass(members: Sequence[tuple[BallObservation, DoubtView, Sequence[float] | None]], ball: np.ndarray,
+                sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the ball ``members``' rays meet at lies under the grass beyond its own uncertainty: its centre
+    (``ball``, (3,) world metres, SoccerNet z down) lower than a ball resting on the grass (``s.ball_diameter_m`` / 2
+    up) by more than :data:`UNDER_GRASS_SIGMAS` standard deviations of its height. The height's deviation is the
+    least-squares ball's (:func:`app.geometry.spread.position_covariance`), each member's pixel sigma its camera's
+    (``sigma``, px at 1920 width, at least :data:`MIN_SIGMA_PX`) and :data:`CENTRE_NOISE` of its box's diameter
+    (``members``: (observation, view, box [x1, y1, x2, y2] px or None for a point)) in quadrature. False where the
+    members fix no point.
+
+    The play volume lets a ball's centre lie half a metre under the grass, the noise of a ball two unsure cameras
+    place; two sure cameras that meet far under it meet at no ball. A false box on a labelled view's ray meets that
+    ray at a ball's size somewhere along it, under the grass as readily as over it (made set seed-203-s2417: a box
+    41 px off the ball in a camera 2.4 m high, on the ray of a view whose camera projects the true ball within 3 px,
+    met it 0.23 m under a resting ball's centre, seven of its standard deviations: a 3D ball 1.13 m off)."""
+    sig: dict[Hashable, float] = {}
+    for obs, view, box in members:
+        noise = 0.0 if box is None else CENTRE_NOISE * _diameter(box, view) * REFERENCE_WIDTH_PX / view.width
+        sig[obs.view_id] = math.hypot(read_sigma(sigma, obs.view_id), noise)
+    below = float(ball[2]) + s.ball_diameter_m / 2
+    if below <= 0:
+        return False
+    cov = position_covariance([obs for obs, _, _ in members], ball, sig)
+    return cov is not None and below > UNDER_GRASS_SIGMAS * math.sqrt(max(float(cov[2, 2]), 0.0))
 
 
 def explained(errors: Mapping[Hashable, float], boxes: Mapping[Hashable, tuple[DoubtView, Sequence[float]]],

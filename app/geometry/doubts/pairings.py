@@ -31,6 +31,7 @@ from app.geometry.doubts.detected import (
     read_sigma,
     sigmas_px,
     size_ratio,
+    under_grass,
 )
 from app.geometry.pitch import BALL_DIAMETER_M
 from app.geometry.spread import position_covariance, position_sigma_m, projected_sigma_px
@@ -244,14 +245,14 @@ def _chosen(pairings: Sequence[_Pairing], s: DoubtSettings) -> tuple[_Pairing, i
     return best, len(pairings), margin
 
 
-def _placed(p: _Pairing, sigma: Mapping[Hashable, float]) -> bool:
-    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M`, or :data:`GRASS_SPREAD_M` where
-    the grass places it (:func:`_grass_placed`): one standard deviation along the worst direction, each member's
-    pixel sigma ``sigma`` (px at 1920 width) at least :data:`MIN_SIGMA_PX` (:func:`_spread`). Asked of the chosen
-    pairing only: a candidate placed badly is still a rival the rays cannot tell from it (dropping it first would let
-    a false box at a better fixed depth win alone)."""
+def _placed(p: _Pairing, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+    """Whether the pairing's cameras place its ball within :data:`MAX_SPREAD_M` (:data:`GRASS_SPREAD_M` where the
+    grass places it, :func:`_grass_placed`), one standard deviation along the worst direction at pixel sigmas ``sigma``
+    (px at 1920 width, :func:`_spread`), and not under the grass (:func:`under_grass`). Asked of the chosen pairing
+    only: a badly placed candidate is a rival still (dropping it first lets a false box placed better win alone)."""
     spread = _spread(p, sigma)
-    return spread is not None and spread <= (GRASS_SPREAD_M if _grass_placed(p) else MAX_SPREAD_M)
+    return (spread is not None and spread <= (GRASS_SPREAD_M if _grass_placed(p) else MAX_SPREAD_M) and not under_grass(
+        [(m.obs, m.view, m.view.box if m.box is None else m.box) for m in p.members], p.ball, sigma, s))
 
 
 def _spread(p: _Pairing, sigma: Mapping[Hashable, float]) -> float | None:
@@ -261,10 +262,9 @@ def _spread(p: _Pairing, sigma: Mapping[Hashable, float]) -> float | None:
 
 
 def _grass_placed(p: _Pairing) -> bool:
-    """Whether every member's ray (its label's or its detection's centre) meets the plane of a ball's centre on the
-    grass (:data:`app.geometry.pitch.BALL_DIAMETER_M` / 2 up; SoccerNet world, z down) within :data:`MAX_SPREAD_M` of
-    the pairing's ball: the grass then places that ball where each ray meets it, whatever the rays' parallax fixes
-    of its depth (:data:`GRASS_SPREAD_M`)."""
+    """Whether every member's ray (its label's or detection's centre) meets the plane of a ball's centre on the grass
+    (a radius up, :data:`app.geometry.pitch.BALL_DIAMETER_M`; SoccerNet world, z down) within :data:`MAX_SPREAD_M` of
+    the pairing's ball: the grass then places it where each ray meets it, whatever the parallax fixes of its depth."""
     return all(_meets_grass_near(m, p.ball, MAX_SPREAD_M) for m in p.members)
 
 
@@ -476,7 +476,7 @@ def _one_ray(lone: DoubtView, unlabelled: Sequence[DoubtView], thirds: Sequence[
         if not _telling(v, float(sigma.get(v.view_id, 0.0)), s):
             continue
         c = _chosen([p for p in pairings if not _ray_missed(lone, p, thirds, detections, tol, s)], s)
-        if (c is not None and _pinned(lone, v, sigma, s) and _placed(c[0], sigma) and _explained(c[0], sigma, s)
+        if (c is not None and _pinned(lone, v, sigma, s) and _placed(c[0], sigma, s) and _explained(c[0], sigma, s)
                 and _told_from_players(c[0], v)):
             chosen[v.view_id] = c
     # a view whose every box on the labelled ray (at a ball's size where the rays meet) lies elsewhere than a chosen
@@ -571,7 +571,7 @@ def _among_detections(usable: Sequence[DoubtView], witnesses: Sequence[DoubtView
             and (all(m.detection is not None for m in p.members)
                  or len(p.members) + sum(1 for c in p.confirmed if c in telling) >= 3)]
     c = _chosen(kept, s)
-    return {} if c is None or not _placed(c[0], sigma) or _one_person(c[0]) else _found(*c, "detections_agree")
+    return {} if c is None or not _placed(c[0], sigma, s) or _one_person(c[0]) else _found(*c, "detections_agree")
 
 
 def _one_person(p: _Pairing) -> bool:

@@ -90,7 +90,7 @@ from app.services.wording.doubt_words import with_sentence
 
 #: Version of what :func:`recompute_system` derives (rows and the queue's figures); raise it when that
 #: changes, so that stored systems are recomputed before they are served (:func:`refresh_stale_systems`).
-DERIVED_VERSION = 14 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
+DERIVED_VERSION = 15 + RULE_VERSION  # 2: pairs outside the play volume dropped, suggested labels left out; 3: pairs
 # weighed;
 # 4: each view's distance from the ball the other views agree on (the per-annotator figures)
 # by what their calibrations are worth (weak_calibrations, outweighed); 5: each ball's sigma stored (and the rule by
@@ -104,7 +104,8 @@ DERIVED_VERSION = 14 + RULE_VERSION  # 2: pairs outside the play volume dropped,
 # 11: a ball resting on one pair whose rays meet only at the edge of tau is refused; 12: the doubts say so of a
 # consensus resting on one such pair of full votes beyond their joint sigma (views_disagree, lone_pair); 13: one
 # labelled view whose box agrees with the grass calls a view showing that spot missing; 14: before the pairs are
-# weighed, those with a view outside the largest consensus of views (within tau of one pair's point) are left out
+# weighed, those with a view outside the largest consensus of views (within tau of one pair's point) are left out;
+# 15: a detection whose rays meet the others' under the grass beyond three of that ball's sigmas fills no view
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,
