@@ -188,8 +188,8 @@ def read_sigma(sigma: Mapping[Hashable, float], view_id: Hashable) -> float:
 UNDER_GRASS_SIGMAS = 3.0
 
 
-def under_grass(members: Sequence[tuple[BallObservation, DoubtView, Sequence[float] | None]], ball: np.ndarray,
-                sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
+def under_grass(members: Sequence[tuple[BallObservation, DoubtView, Sequence[float] | np.ndarray | None]],
+                ball: np.ndarray, sigma: Mapping[Hashable, float], s: DoubtSettings) -> bool:
     """Whether the ball ``members``' rays meet at lies under the grass beyond its own uncertainty: its centre
     (``ball``, (3,) world metres, SoccerNet z down) lower than a ball resting on the grass (``s.ball_diameter_m`` / 2
     up) by more than :data:`UNDER_GRASS_SIGMAS` standard deviations of its height. The height's deviation is the
@@ -205,7 +205,8 @@ def under_grass(members: Sequence[tuple[BallObservation, DoubtView, Sequence[flo
     met it 0.23 m under a resting ball's centre, seven of its standard deviations: a 3D ball 1.13 m off)."""
     sig: dict[Hashable, float] = {}
     for obs, view, box in members:
-        noise = 0.0 if box is None else CENTRE_NOISE * _diameter(box, view) * REFERENCE_WIDTH_PX / view.width
+        d = 0.0 if box is None else _diameter([float(x) for x in box], view) * REFERENCE_WIDTH_PX / view.width
+        noise = CENTRE_NOISE * d
         sig[obs.view_id] = math.hypot(read_sigma(sigma, obs.view_id), noise)
     below = float(ball[2]) + s.ball_diameter_m / 2
     if below <= 0:
