@@ -46,7 +46,7 @@ from app.geometry.camera import Camera
 
 #: The rule's version: raise it with any change of :func:`ball_evidence` or its thresholds (it is part of the
 #: derived version, so every stored system is recomputed).
-RULE_VERSION = 1
+RULE_VERSION = 2  # 2: a label copied from a detection's box is not confirmed by that detection
 
 #: A detection confirms a label when its centre lies within this fraction of the label's radius of the label's centre.
 DETECTION_CENTRE_RADII = 1.0
@@ -180,6 +180,20 @@ def detection_at_label(label_box: Sequence[float], detections: Sequence[Sequence
     return False
 
 
+def copied_detection(label_box: Sequence[float], original_box: Sequence[float] | None,
+                     detection_box: Sequence[float]) -> bool:
+    """Whether a ball label is a copy of a detection's box: placed in v3d (it differs from the imported label
+    ``original_box``, None where the view had none) and equal to ``detection_box``, or to it rounded to the pixel as
+    the doubts' fix key places a detector's box (``snap_box``, ``app.services.derivation.doubts``). All (4,)
+    ``[x1, y1, x2, y2]`` px of the view's image. Such a label is that detection's own box: the detection cannot
+    confirm it (a person's confirmation of the placed box is the one look at the image it has, as for any label)."""
+    lb = np.asarray(label_box, dtype=float).reshape(4)
+    if original_box is not None and np.array_equal(lb, np.asarray(original_box, dtype=float).reshape(4)):
+        return False
+    db = np.asarray(detection_box, dtype=float).reshape(4)
+    return any(bool(np.allclose(lb, b, rtol=0.0, atol=1e-6)) for b in (db, np.round(db)))
+
+
 def label_size_ratio(camera: Camera, ball: np.ndarray, label_box: Sequence[float], ball_diameter_m: float
                      ) -> float | None:
     """The label's box diameter ``(w + h) / 2`` over that of the exact silhouette of a sphere of ``ball_diameter_m``
@@ -265,11 +279,12 @@ def ball_evidence(facts: BallFacts) -> tuple[str, list[str]]:
          ray of the pairs would project (the midpoint, :func:`depth_shift_px`: a near duplicate of one of those
          views sees both at the same place and vouches for nothing): a third ray that meets the ball;
       3. **two views the detector and the players confirm**: every view's label confirmed by a detection
-         (:func:`detection_at_label`: the label is on a ball, not on another object nor where none is), the two
-         cameras agreeing on the players both see (the cameras are not off along the epipolar line), the pair's
-         error at most :data:`TWO_VIEW_MAX_ERROR_TAU` of tau and the sigma at most :data:`TWO_VIEW_MAX_SIGMA_M`
-         (a replay of another instant is the one corruption neither sees: its ray meets the other anywhere within
-         tau, a right pair's within a quarter of it);
+         (:func:`detection_at_label`: the label is on a ball, not on another object nor where none is; a label
+         that is a detection's box placed by the fix key is not confirmed by that detection,
+         :func:`copied_detection`), the two cameras agreeing on the players both see (the cameras are not off
+         along the epipolar line), the pair's error at most :data:`TWO_VIEW_MAX_ERROR_TAU` of tau and the sigma at
+         most :data:`TWO_VIEW_MAX_SIGMA_M` (a replay of another instant is the one corruption neither sees: its ray
+         meets the other anywhere within tau, a right pair's within a quarter of it);
 
     * ``unconfirmed``: otherwise (it rests on its views' own agreement).
 

@@ -20,6 +20,7 @@ from app.geometry.ball_evidence import (
     ViewFacts,
     agreeing_views,
     ball_evidence,
+    copied_detection,
     depth_shift_px,
     detection_at_ball,
     detection_at_label,
@@ -116,6 +117,18 @@ def test_a_detection_confirms_a_label_when_its_centre_lies_within_the_label_radi
     assert not detection_at_label(label, [[95.0, 95.0, 125.0, 135.0]])  # 35 px across: 75 % larger
     assert not detection_at_label(label, [])
     assert detection_at_label(label, [[400.0, 400.0, 420.0, 420.0], [101.0, 99.0, 119.0, 121.0]])
+
+
+def test_a_label_the_fix_key_copied_from_a_detection_is_that_detections_box_and_no_other():
+    """The key places a detector's box rounded to the pixel: that label is the detection's copy (it confirms nothing
+    there); the same box as imported (a person's), a box a pixel off, or another detection's box are not copies."""
+    det = [862.41, 493.17, 871.02, 501.73]
+    assert copied_detection([862.0, 493.0, 871.0, 502.0], None, det)
+    assert copied_detection(det, None, det)  # placed without rounding
+    assert copied_detection([862.0, 493.0, 871.0, 502.0], [850.0, 490.0, 860.0, 500.0], det)  # moved onto it
+    assert not copied_detection([862.0, 493.0, 871.0, 502.0], [862.0, 493.0, 871.0, 502.0], det)  # as imported
+    assert not copied_detection([863.0, 493.0, 871.0, 502.0], None, det)
+    assert not copied_detection([862.0, 493.0, 871.0, 502.0], None, [849.94, 175.48, 861.82, 188.76])
 
 
 def test_a_box_where_the_ball_projects_is_near_it_at_its_size_and_a_label_box_has_the_silhouettes_size():

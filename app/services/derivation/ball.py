@@ -23,6 +23,7 @@ from app.geometry.ball_evidence import (
     OtherView,
     ViewFacts,
     agreeing_views,
+    copied_detection,
     depth_shift_px,
     detection_at_ball,
     detection_at_label,
@@ -214,9 +215,13 @@ def ball_facts(system: System, ball: Sequence[float] | np.ndarray | None, kept_p
                 others += [OtherView(names[f.id], *near, depth_1920=depth)] if near is not None else []
                 labelled += [OtherView(names[f.id], *at, depth_1920=depth)] if at is not None else []
             continue
-        box = f.ball_label.box if f.ball_label is not None else None
+        label = f.ball_label
+        box = label.box if label is not None else None
         found = detections.get(f.id)
-        detected = None if not found or box is None else detection_at_label(box, [d.box for d in found])
+        # a label the fix key copied from a detection is that detection's own box: it confirms nothing there
+        original = label.original_box if label is not None else None
+        own = [d.box for d in found or () if box is None or not copied_detection(box, original, d.box)]
+        detected = None if not found or box is None else detection_at_label(box, own)
         views.append(ViewFacts(name=names[f.id], detected=detected))
     accused = [d.frame_id for d in system.doubts if d.accuses_label]
     named = used if None in accused else {fid for fid in accused if fid in used}

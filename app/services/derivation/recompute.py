@@ -105,7 +105,8 @@ DERIVED_VERSION = 15 + RULE_VERSION  # 2: pairs outside the play volume dropped,
 # consensus resting on one such pair of full votes beyond their joint sigma (views_disagree, lone_pair); 13: one
 # labelled view whose box agrees with the grass calls a view showing that spot missing; 14: before the pairs are
 # weighed, those with a view outside the largest consensus of views (within tau of one pair's point) are left out;
-# 15: a detection whose rays meet the others' under the grass beyond three of that ball's sigmas fills no view
+# 15: a detection whose rays meet the others' under the grass beyond three of that ball's sigmas fills no view;
+# the evidence rule's version 2 (+1): a label the fix key copied from a detection's box is not confirmed by it
 
 
 def recompute_frame(session: Session, frame: Frame, settings: Settings,

@@ -129,3 +129,39 @@ def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir
                 assert shown is None, frame_id
             else:
                 assert shown == pytest.approx(evidence["confirmed_error_px"], abs=0.006), frame_id
+
+
+def test_a_box_the_key_placed_from_a_detection_is_not_confirmed_by_that_detection(shared_dir, tmp_path,
+                                                                                 fresh_session_factory):
+    # each system of this game with a detector's box to place, placed as the key places it (rounded to the pixel)
+    # and confirmed: where the ball then stands on that view, the evidence never says the detector confirms it (the
+    # detection is the label's own box; app.geometry.ball_evidence.copied_detection), while other views' labels of a
+    # person's are still confirmed by theirs
+    import re
+
+    from app.core.config import Settings
+    from app.db.models import Frame, System
+    from app.services.curation.editing import update_ball_label
+
+    settings = Settings(calibration_workers=1)
+    with fresh_session_factory("game") as session:
+        frames, _ = import_detector_game(session, shared_dir, tmp_path, SET,
+                                         Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
+        detected = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.kind == "ball_detected")
+                                   .order_by(Doubt.id)).all()
+        placed: dict[int, tuple[int, list[float]]] = {}
+        for d in detected:
+            if d.suggestion is not None:
+                placed.setdefault(frames[d.frame_id].system_id, (d.frame_id, d.suggestion["box"]))
+        read, others = 0, 0
+        for system_id, (frame_id, box) in placed.items():
+            update_ball_label(session, frame_id, box=[float(round(x)) for x in box], settings=settings)
+            session.commit()
+            system = session.get(System, system_id)
+            name = f"V{[f.id for f in system.frames].index(frame_id) + 1}"
+            said = [r for r in system.ball_evidence_reasons if r.startswith("the detector confirms")]
+            assert session.get(Frame, frame_id).ball_label.box == [float(round(x)) for x in box]
+            read += system.ball_evidence.value != "none"
+            others += bool(said)
+            assert not any(re.search(rf"\b{name}\b", r) for r in said), (system.name, name, said)
+        assert read >= 5 and others >= 1, (read, others)
