@@ -15,6 +15,7 @@ from app.db.models import Doubt
 from tests.services.curation.test_detected_by_players import import_detector_game
 
 SET = "dev-large"
+FENWICK = Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick")
 
 
 def _fills(shared_dir: Path, tmp_path: Path, factory: Any, game: Path) -> tuple[dict[str, Any], dict[str, tuple]]:
@@ -79,8 +80,7 @@ def test_unsure_cameras_take_part_weighted_by_their_uncertainty(shared_dir, tmp_
     # unsure beyond tau (sigma 27 px) and its pairing with the view's detection is placed by the spread that sigma
     # leaves; in 14.png the one ray is a half vote (a camera its players placed, sigma 1 px) with two boxes near it,
     # of which one alone lies within its cameras' and the detector's uncertainty of the ray: both filled, both right
-    fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory,
-                            Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
+    fills, centres = _fills(shared_dir, tmp_path, fresh_session_factory, FENWICK)
     for image in ("17.png", "14_1.png"):
         box = _the_fill(fills, image, "ball_detected", "one_ray")
         assert _right(box, centres[image]), image
@@ -100,6 +100,15 @@ def test_a_view_whose_camera_takes_no_part_in_the_votes_is_not_filled_where_its_
     assert not [code for kind, code, _ in fills.get("5.png", []) if kind == "ball_detected"]
 
 
+def _detected_doubts(session: Any, shared_dir: Path, tmp_path: Path) -> tuple[dict[int, Any], list[Doubt]]:
+    """Glenrock 0 - 3 Fenwick of the set imported with its predictions: its frames by id and its ``ball_detected``
+    doubts in id order."""
+    frames, _ = import_detector_game(session, shared_dir, tmp_path, SET, FENWICK)
+    detected = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.kind == "ball_detected")
+                               .order_by(Doubt.id)).all()
+    return frames, list(detected)
+
+
 def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir, tmp_path, fresh_session_factory):
     # every system of this game with a detector's box to place: the doubt's number is the one the view shows once a
     # person confirms the box (before, the check's number, against a ball refitted through the box itself, read
@@ -110,10 +119,7 @@ def test_a_detectors_box_says_the_error_its_view_shows_once_confirmed(shared_dir
 
     settings = Settings(calibration_workers=1)
     with fresh_session_factory("game") as session:
-        frames, _ = import_detector_game(session, shared_dir, tmp_path, SET,
-                                         Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
-        detected = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.kind == "ball_detected")
-                                   .order_by(Doubt.id)).all()
+        frames, detected = _detected_doubts(session, shared_dir, tmp_path)
         said = {}
         for d in detected:  # one per system: confirming a box changes what its system's other doubts say
             if d.suggestion is None:  # no fix key (without_unbacked_fixes): nothing placed to confirm
@@ -145,10 +151,7 @@ def test_a_box_the_key_placed_from_a_detection_is_not_confirmed_by_that_detectio
 
     settings = Settings(calibration_workers=1)
     with fresh_session_factory("game") as session:
-        frames, _ = import_detector_game(session, shared_dir, tmp_path, SET,
-                                         Path("synth_league_a/2031-2032/2031-08-01 - 14-00 Glenrock 0 - 3 Fenwick"))
-        detected = session.scalars(sa.select(Doubt).where(Doubt.frame_id.in_(frames), Doubt.kind == "ball_detected")
-                                   .order_by(Doubt.id)).all()
+        frames, detected = _detected_doubts(session, shared_dir, tmp_path)
         placed: dict[int, tuple[int, list[float]]] = {}
         for d in detected:
             if d.suggestion is not None:
